@@ -1,0 +1,56 @@
+"""The ``peghole`` command line: one sub-command group per subpackage.
+
+Each group module exposes ``add_parser(subparsers)``, which adds its parser and sets
+``func`` (called with the parsed namespace, returns an exit status).
+"""
+
+from __future__ import annotations
+
+import argparse
+import importlib
+import sys
+
+import peghole_mjx._mjx  # noqa: F401  (first: keeps mjx's import chatter off stdout)
+from peghole_mjx import __version__
+from peghole_mjx.errors import REPORTED_ERRORS
+
+#: command group -> module that defines it
+GROUPS: dict[str, str] = {
+    "models": "peghole_mjx.geometry.cli",
+    "analyze": "peghole_mjx.analysis.cli",
+    "experiment": "peghole_mjx.experiments.cli",
+}
+
+
+def build_parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(
+        prog="peghole",
+        description="Simulation, analysis and learning for robotic peg-hole disassembly.",
+    )
+    parser.add_argument("--version", action="version", version=f"peghole_mjx {__version__}")
+    sub = parser.add_subparsers(dest="group", metavar="COMMAND")
+    for module in GROUPS.values():
+        try:
+            importlib.import_module(module).add_parser(sub)
+        except ModuleNotFoundError as exc:  # a group not installed in this build
+            if not exc.name or not module.startswith(exc.name):
+                raise
+    return parser
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    if not hasattr(args, "func"):
+        parser.print_help()
+        return 2
+    try:
+        return int(args.func(args) or 0)
+    except REPORTED_ERRORS as exc:
+        msg = exc.args[0] if isinstance(exc, KeyError) and exc.args else exc
+        print(f"peghole: error: {msg}", file=sys.stderr)
+        return 2
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,247 @@
+"""``peghole models``: check the presets, build scenes, decompose a user's CAD parts."""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+from pathlib import Path
+
+from peghole_mjx.errors import UserInputError
+from peghole_mjx.geometry.specs import PRESETS, dual_spec, get_preset, rect_spec
+
+
+def _pair(text: str) -> tuple[float, float]:
+    """Parse ``"60.1x40.1"`` (mm) into a pair of floats."""
+    try:
+        a, b = text.lower().split("x")
+        return float(a), float(b)
+    except ValueError:
+        raise argparse.ArgumentTypeError(
+            f"expected WxV in mm, e.g. 60.1x40.1, got {text!r}"
+        ) from None
+
+
+def add_parser(sub: argparse._SubParsersAction) -> None:
+    p = sub.add_parser("models", help="peg-hole models: check, build, decompose")
+    msub = p.add_subparsers(dest="models_cmd", metavar="SUBCOMMAND", required=True)
+
+    c = msub.add_parser(
+        "check",
+        help="measure effective clearance and drop-test every preset (MuJoCo C and MJX-JAX)",
+        description="For every preset: effective clearance by MuJoCo distance queries (pass: "
+        "within 10 %% of nominal) and a free-peg drop test in MuJoCo C and MJX-JAX (pass: tip "
+        "within 1 mm of the hole bottom). Exit status 0 only if every preset passes.",
+    )
+    c.add_argument("--json", action="store_true", help="print a JSON list instead of a table")
+    c.add_argument(
+        "--preset",
+        action="append",
+        choices=sorted(PRESETS),
+        help="check only this preset (repeatable); default: all six",
+    )
+    c.add_argument("--no-mjx", action="store_true", help="skip the MJX-JAX drop test (faster)")
+    c.add_argument(
+        "--out",
+        type=Path,
+        help="also write the rows with device, versions and date to this JSON file",
+    )
+    c.set_defaults(func=cmd_check)
+
+    b = msub.add_parser(
+        "build",
+        help="write a complete scene (iiwa + peg on its flange + hole block + floor) as MJCF",
+        description="Write scene.xml (robot) and free_peg.xml (peg alone) to --out. Either "
+        "--preset NAME, or --geometry rect|dual with custom dimensions in mm.",
+    )
+    b.add_argument("--preset", choices=sorted(PRESETS))
+    b.add_argument("--geometry", choices=["rect", "dual"])
+    b.add_argument("--hole", type=_pair, help="rect: hole W x V in mm, e.g. 60.1x40.1")
+    b.add_argument("--peg", type=_pair, help="rect: peg W' x V' in mm, e.g. 59.8x39.8")
+    b.add_argument("--hole-radius", type=float, help="dual: hole radius R in mm")
+    b.add_argument("--peg-radius", type=float, help="dual: peg radius r in mm")
+    b.add_argument("--distance", type=float, help="dual: centre distance D (pegs and holes), mm")
+    b.add_argument("--length", type=float, help="peg length in mm (hole depth = length)")
+    b.add_argument("--friction", type=float, help="Coulomb friction (default: preset's)")
+    b.add_argument("--out", required=True, type=Path, help="output directory")
+    b.set_defaults(func=cmd_build)
+
+    d = msub.add_parser(
+        "decompose",
+        help="convex-decompose a user's peg and hole meshes (CoACD) and write an MJCF",
+        description="PEG_MESH and HOLE_MESH: STL/OBJ/PLY, closed solids, in their assembled "
+        "pose (peg fully inserted), +z = extraction direction. Reports each decomposition's "
+        "deviation from its input surface, warns when the hulls intrude more than "
+        "--warn-fraction of the radial clearance, writes user_peghole.xml and report.json.",
+    )
+    d.add_argument("peg_mesh", type=Path)
+    d.add_argument("hole_mesh", type=Path)
+    d.add_argument("--out", required=True, type=Path)
+    d.add_argument("--units", default="mm", choices=["mm", "cm", "m"], help="mesh units")
+    d.add_argument("--threshold", type=float, default=0.01, help="CoACD concavity threshold")
+    d.add_argument("--resolution", type=int, default=2000, help="CoACD sampling resolution")
+    d.add_argument("--preprocess-resolution", type=int, default=50)
+    d.add_argument("--max-convex-hull", type=int, default=-1, help="CoACD hull cap (-1: none)")
+    d.add_argument("--max-ch-vertex", type=int, default=64, help="vertices per hull cap")
+    d.add_argument("--mcts-iterations", type=int, default=150)
+    d.add_argument("--seed", type=int, default=0)
+    d.add_argument(
+        "--clearance-mm",
+        type=float,
+        help="radial clearance; default: measured from the assembled meshes",
+    )
+    d.add_argument("--warn-fraction", type=float, default=0.25)
+    d.add_argument("--friction", type=float, default=0.266)
+    d.add_argument("--peg-mass", type=float, help="peg mass in kg (default: PLA density)")
+    d.add_argument(
+        "--drop-test",
+        action="store_true",
+        help="also drop the free peg into the decomposed hole (MuJoCo C)",
+    )
+    d.add_argument("--json", action="store_true", help="print the report as JSON")
+    d.set_defaults(func=cmd_decompose)
+
+
+def cmd_check(args: argparse.Namespace) -> int:
+    from tqdm import tqdm
+
+    from peghole_mjx.geometry.check import check_spec
+
+    names = args.preset or list(PRESETS)
+    rows = []
+    for name in tqdm(
+        names, desc="models check", unit="preset", file=sys.stderr, disable=len(names) == 1
+    ):
+        rows.append(check_spec(name, PRESETS[name], mjx_too=not args.no_mjx))
+    if args.out:
+        from peghole_mjx.provenance import provenance
+
+        args.out.parent.mkdir(parents=True, exist_ok=True)
+        args.out.write_text(
+            json.dumps({**provenance(), "presets": [r.as_dict() for r in rows]}, indent=2) + "\n"
+        )
+    if args.json:
+        print(json.dumps([r.as_dict() for r in rows], indent=2))
+    else:
+        hdr = (
+            f"{'preset':8} {'nominal mm':>10} {'effective mm':>12} {'error %':>8} "
+            f"{'drop gap mm':>11} {'mjx_jax':>7} {'geoms':>5}  result"
+        )
+        print(hdr)
+        print("-" * len(hdr))
+        for r in rows:
+            print(
+                f"{r.preset:8} {r.nominal_clearance_mm:10.4f} {r.effective_clearance_mm:12.4f} "
+                f"{r.clearance_error_pct:8.2f} {r.drop_test_gap_mm:11.3f} "
+                f"{r.mjx_jax_ok!s:>7} {r.n_convex_geoms:5d}  "
+                + ("pass" if r.passed else "FAIL: " + "; ".join(r.failures))
+            )
+    return 0 if all(r.passed for r in rows) else 1
+
+
+def spec_from_args(args: argparse.Namespace):
+    """A validated spec from ``--preset`` or custom ``--geometry`` dimensions."""
+    import dataclasses
+
+    if args.preset and args.geometry:
+        raise UserInputError("give either --preset or --geometry, not both")
+    if args.preset:
+        spec = get_preset(args.preset)
+    elif args.geometry == "rect":
+        missing = [f for f in ("hole", "peg", "length") if getattr(args, f) is None]
+        if missing:
+            raise UserInputError("--geometry rect needs " + ", ".join(f"--{m}" for m in missing))
+        spec = rect_spec(args.hole, args.peg, args.length)
+    elif args.geometry == "dual":
+        need = ("hole_radius", "peg_radius", "distance", "length")
+        missing = [f for f in need if getattr(args, f) is None]
+        if missing:
+            raise UserInputError(
+                "--geometry dual needs " + ", ".join("--" + m.replace("_", "-") for m in missing)
+            )
+        spec = dual_spec(args.hole_radius, args.peg_radius, args.distance, args.length)
+    else:
+        raise UserInputError("give --preset NAME or --geometry rect|dual with dimensions")
+    if getattr(args, "friction", None) is not None:
+        from peghole_mjx.geometry.specs import validate
+
+        spec = validate(dataclasses.replace(spec, friction=args.friction))
+    return spec
+
+
+def cmd_build(args: argparse.Namespace) -> int:
+    from peghole_mjx.geometry.mjcf import write_scene
+
+    spec = spec_from_args(args)
+    scene = write_scene(spec, args.out, robot=True, name="scene.xml")
+    free = write_scene(spec, args.out, robot=False, name="free_peg.xml")
+    print(f"wrote {scene} and {free}")
+    print(
+        f"  nominal diametral clearance {spec.clearance_mm:.3f} mm; view with: "
+        f"python -m mujoco.viewer --mjcf={scene}"
+    )
+    return 0
+
+
+def cmd_decompose(args: argparse.Namespace) -> int:
+    import warnings
+
+    from peghole_mjx.geometry.decompose import CoacdParams, DecompositionWarning, decompose_parts
+
+    params = CoacdParams(
+        threshold=args.threshold,
+        max_convex_hull=args.max_convex_hull,
+        preprocess_resolution=args.preprocess_resolution,
+        resolution=args.resolution,
+        mcts_iterations=args.mcts_iterations,
+        max_ch_vertex=args.max_ch_vertex,
+        seed=args.seed,
+    )
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", DecompositionWarning)  # reported below instead
+        report = decompose_parts(
+            args.peg_mesh,
+            args.hole_mesh,
+            args.out,
+            units=args.units,
+            params=params,
+            friction=args.friction,
+            peg_mass_kg=args.peg_mass,
+            clearance_mm=args.clearance_mm,
+            warn_fraction=args.warn_fraction,
+        )
+    out = report.as_dict()
+    if args.drop_test:
+        import mujoco
+
+        from peghole_mjx.geometry.check import DROP_TOLERANCE_MM, drop_gap_mujoco
+
+        if report.hole_depth_mm is None:
+            raise UserInputError("no hole bottom under the peg (a through hole?): no drop test")
+        m = mujoco.MjModel.from_xml_path(report.mjcf)
+        gap = drop_gap_mujoco(m, report.hole_depth_mm * 1e-3)
+        out["drop_test_gap_mm"] = gap
+        out["drop_test_passed"] = gap <= DROP_TOLERANCE_MM
+        (Path(args.out) / "report.json").write_text(json.dumps(out, indent=2))
+    if args.json:
+        print(json.dumps(out, indent=2))
+    else:
+        for part in ("peg", "hole"):
+            dv = out[part]
+            print(
+                f"{part}: {dv['n_hulls']} hulls (<= {dv['hull_vertices_max']} vertices), "
+                f"excess max {dv['excess_mm']:.4f} mm (p95 {dv['excess_p95_mm']:.4f} mm)"
+            )
+        print(
+            f"radial clearance {report.radial_clearance_mm:.4f} mm; warn above "
+            f"{report.warn_threshold_mm:.4f} mm"
+        )
+        if "drop_test_gap_mm" in out:
+            print(
+                f"drop test: tip ends {out['drop_test_gap_mm']:.3f} mm above the hole bottom "
+                f"({'pass' if out['drop_test_passed'] else 'FAIL'})"
+            )
+        print(f"wrote {report.mjcf}")
+    for msg in report.warnings:
+        print(f"warning: {msg}", file=sys.stderr)
+    return 0 if out.get("drop_test_passed", True) else 1

@@ -1,0 +1,294 @@
+"""MJCF scene emission: the iiwa with the peg on its tool flange, the hole block and a floor.
+
+Scenes are built in memory with :class:`mujoco.MjSpec` from a :mod:`specs` spec and the convex
+pieces of :mod:`parts`, so the same code serves ``peghole models build`` (writes XML), the
+checks and the environments. The simulator options (timestep, solver, contact softness) are
+set here and only here (:class:`SimOptions`): the robot XML has no ``<option>``.
+
+Contacts are explicit ``<pair>`` elements between peg pieces and hole pieces (dual: peg i only
+meets hole i's pieces), so MJX tests no useless geom pairs and robot links never collide.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from dataclasses import dataclass
+from pathlib import Path
+
+import mujoco
+import numpy as np
+
+from peghole_mjx.geometry.parts import ConvexPart, hole_parts, peg_parts, peg_tip_z_m
+from peghole_mjx.geometry.specs import MM, DualSpec, PegHoleSpec
+
+#: where the robot model lives: inside an installed package, or the repository's mjcf/
+_PKG_MJCF = Path(__file__).resolve().parents[1] / "_mjcf"
+_REPO_MJCF = Path(__file__).resolve().parents[2] / "mjcf"
+MJCF_DIR = _PKG_MJCF if _PKG_MJCF.is_dir() else _REPO_MJCF
+ROBOT_XML = MJCF_DIR / "iiwa14.xml"
+
+#: robot joint and actuator names (looked up by name, never by index)
+JOINTS = tuple(f"joint{i}" for i in range(1, 8))
+ACTUATORS = tuple(f"joint{i}_motor" for i in range(1, 8))
+HOME_QPOS = np.array([0.0, 0.785398, 0.0, -1.5708, 0.0, 0.0, 0.0])
+
+#: hole mouth position in the world, metres (x, y); z is the block's top face
+HOLE_XY_M = (0.6, 0.0)
+
+
+@dataclass(frozen=True)
+class SimOptions:
+    """Simulator options: the one place where the timestep and contact softness are set.
+
+    ``contact_timeconst`` defaults to twice the timestep (MuJoCo's stiffest stable value);
+    ``solimp`` near 1 keeps steady penetration to micrometres, below the tightest clearance.
+    """
+
+    timestep: float = 0.002
+    iterations: int = 8
+    ls_iterations: int = 8
+    integrator: str = "euler"  # implicitfast went unstable for the free dual peg at rest
+    contact_timeconst: float | None = None
+    contact_dampratio: float = 1.0
+    solimp: tuple[float, float, float, float, float] = (0.99, 0.999, 0.0002, 0.5, 2.0)
+    torsional_friction: float = 0.0
+    tip_gap_mm: float = 0.5  # gap between the peg tip and the hole bottom in the start pose
+
+    @property
+    def solref(self) -> tuple[float, float]:
+        tc = self.contact_timeconst if self.contact_timeconst is not None else 2 * self.timestep
+        return (tc, self.contact_dampratio)
+
+
+def _set_options(s: mujoco.MjSpec, sim: SimOptions) -> None:
+    s.option.timestep = sim.timestep
+    s.option.iterations = sim.iterations
+    s.option.ls_iterations = sim.ls_iterations
+    s.option.integrator = {
+        "euler": mujoco.mjtIntegrator.mjINT_EULER,
+        "implicitfast": mujoco.mjtIntegrator.mjINT_IMPLICITFAST,
+        "rk4": mujoco.mjtIntegrator.mjINT_RK4,
+    }[sim.integrator]
+    s.option.solver = mujoco.mjtSolver.mjSOL_NEWTON
+    s.option.cone = mujoco.mjtCone.mjCONE_PYRAMIDAL
+    s.option.disableflags |= mujoco.mjtDisableBit.mjDSBL_EULERDAMP
+    s.compiler.autolimits = True
+
+
+def _add_part(
+    s: mujoco.MjSpec,
+    body: mujoco.MjsBody,
+    part: ConvexPart,
+    prefix: str,
+    rgba: tuple[float, ...],
+    mass: float | None = None,
+) -> mujoco.MjsGeom:
+    kw = {"name": f"{prefix}{part.name}", "contype": 0, "conaffinity": 0, "rgba": list(rgba)}
+    if part.kind == "box":
+        geom = body.add_geom(
+            type=mujoco.mjtGeom.mjGEOM_BOX, size=list(part.half_size), pos=list(part.pos), **kw
+        )
+    else:
+        mesh = s.add_mesh(name=f"{prefix}{part.name}_mesh")
+        mesh.uservert = np.asarray(part.vertices, float).ravel().tolist()
+        geom = body.add_geom(type=mujoco.mjtGeom.mjGEOM_MESH, meshname=mesh.name, **kw)
+    if mass is not None:
+        geom.mass = mass
+    return geom
+
+
+def _add_peg(
+    s: mujoco.MjSpec, body: mujoco.MjsBody, spec: PegHoleSpec, single_hull: bool = False
+) -> list[ConvexPart]:
+    parts = peg_parts(spec, single_hull=single_hull)
+    vols = np.array([p.volume for p in parts])
+    for part, vol in zip(parts, vols, strict=True):
+        _add_part(
+            s, body, part, "", (0.2, 0.45, 0.85, 1.0), mass=spec.peg_mass_kg * vol / vols.sum()
+        )
+    tip = peg_tip_z_m(spec)
+    body.add_site(name="peg_mount", pos=[0, 0, 0], size=[0.003] * 3, group=3)
+    body.add_site(name="peg_tip", pos=[0, 0, tip], size=[0.003] * 3, group=3)
+    return parts
+
+
+def _add_hole(
+    s: mujoco.MjSpec, spec: PegHoleSpec, top_z: float
+) -> tuple[list[ConvexPart], mujoco.MjsBody]:
+    hole = s.worldbody.add_body(name="hole", pos=[HOLE_XY_M[0], HOLE_XY_M[1], top_z], mocap=True)
+    parts = hole_parts(spec)
+    for part in parts:
+        _add_part(s, hole, part, "", (0.75, 0.72, 0.65, 1.0))
+    hole.add_site(name="hole_mouth", pos=[0, 0, 0], size=[0.003] * 3, group=3)
+    hole.add_site(
+        name="hole_bottom", pos=[0, 0, -spec.hole_depth_mm * MM], size=[0.003] * 3, group=3
+    )
+    return parts, hole
+
+
+def _add_pairs(
+    s: mujoco.MjSpec,
+    pegs: list[ConvexPart],
+    holes: list[ConvexPart],
+    spec: PegHoleSpec,
+    sim: SimOptions,
+) -> None:
+    mu = spec.friction
+    for p in pegs:
+        if isinstance(spec, DualSpec) and p.name == "peg_bridge":
+            continue  # the bridge stays above the block: the pegs reach the floor first
+        for h in holes:
+            if p.group is not None and h.group is not None and p.group != h.group:
+                continue
+            s.add_pair(
+                name=f"{p.name}__{h.name}",
+                geomname1=p.name,
+                geomname2=h.name,
+                condim=3,
+                friction=[mu, mu, sim.torsional_friction, 0.0, 0.0],
+                solref=list(sim.solref),
+                solimp=list(sim.solimp),
+                margin=0.0,
+                gap=0.0,
+            )
+
+
+def block_top_z(spec: PegHoleSpec) -> float:
+    """World height of the hole mouth: the block (depth + floor) stands on the floor."""
+    return (spec.hole_depth_mm + spec.floor_mm) * MM
+
+
+def build_scene(
+    spec: PegHoleSpec,
+    *,
+    robot: bool = True,
+    sim: SimOptions | None = None,
+    ik: bool = True,
+    peg_single_hull: bool = False,
+) -> mujoco.MjSpec:
+    """The complete scene as an :class:`mujoco.MjSpec`.
+
+    ``robot=True``: the iiwa with the peg welded to its tool flange, keyframes ``home`` and
+    ``inserted`` (peg fully in the hole, tip ``tip_gap_mm`` above the bottom, found by IK).
+    ``robot=False``: the free peg (a ``freejoint``) alone, keyframe ``mouth`` (tip at the mouth).
+    ``peg_single_hull=True`` collides the peg as one convex hull (the PyBullet failure mode).
+    """
+    sim = sim or SimOptions()
+    top_z = block_top_z(spec)
+    if robot:
+        s = mujoco.MjSpec.from_file(str(ROBOT_XML))
+        s.modelname = f"iiwa14_{spec.kind}_peghole"
+        peg = s.body("tool").add_body(name="peg")
+    else:
+        s = mujoco.MjSpec()
+        s.modelname = f"free_{spec.kind}_peg"
+        # peg frame as on the robot: z down (mount above, tip below), x along world -x
+        peg = s.worldbody.add_body(
+            name="peg", pos=[HOLE_XY_M[0], HOLE_XY_M[1], 0.0], quat=[0, 0, 1, 0]
+        )
+        peg.add_freejoint(name="peg_free")
+    _set_options(s, sim)
+    s.worldbody.add_geom(
+        name="floor",
+        type=mujoco.mjtGeom.mjGEOM_PLANE,
+        size=[1.5, 1.5, 0.05],
+        contype=0,
+        conaffinity=0,
+        rgba=[0.9, 0.9, 0.92, 1],
+    )
+    s.worldbody.add_light(name="top_light", pos=[0.5, 0, 2.0], dir=[0, 0, -1])
+    pegs = _add_peg(s, peg, spec, single_hull=peg_single_hull)
+    holes, _ = _add_hole(s, spec, top_z)
+    _add_pairs(s, pegs, holes, spec, sim)
+    tip = peg_tip_z_m(spec)
+    if robot:
+        s.add_sensor(
+            name="peg_tip_pos",
+            type=mujoco.mjtSensor.mjSENS_FRAMEPOS,
+            objname="peg_tip",
+            objtype=mujoco.mjtObj.mjOBJ_SITE,
+        )
+        if ik:
+            target_tool_z = top_z - spec.hole_depth_mm * MM + sim.tip_gap_mm * MM + tip
+            q = solve_tool_ik(s, np.array([HOLE_XY_M[0], HOLE_XY_M[1], target_tool_z]))
+            s.add_key(name="inserted", qpos=q.tolist())
+    else:
+        start = [HOLE_XY_M[0], HOLE_XY_M[1], top_z + tip, 0.0, 0.0, 1.0, 0.0]
+        s.add_key(name="mouth", qpos=start)
+    return s
+
+
+#: the orientation of the tool frame when the peg hangs straight down into the hole
+TOOL_DOWN_MAT = np.diag([-1.0, 1.0, -1.0])  # tool z = world -z, tool x = world -x
+#: IK seed: elbow up, wrist bent so that the flange faces the floor
+IK_SEED_QPOS = np.array([0.0, 0.5, 0.0, -1.6, 0.0, 1.0, 0.0])
+
+
+def solve_tool_ik(
+    s: mujoco.MjSpec,
+    target_pos: np.ndarray,
+    target_mat: np.ndarray = TOOL_DOWN_MAT,
+    q0: np.ndarray = IK_SEED_QPOS,
+    tol: float = 1e-9,
+    max_iter: int = 500,
+) -> np.ndarray:
+    """Joint angles placing site ``tool`` at ``target_pos`` with orientation ``target_mat``.
+
+    Damped least squares from ``q0`` with a null-space pull to ``q0``; raises RuntimeError when
+    the pose is unreachable within the joint ranges.
+    """
+    m = s.compile()
+    d = mujoco.MjData(m)
+    qadr = np.array([m.joint(j).qposadr[0] for j in JOINTS])
+    dadr = np.array([m.joint(j).dofadr[0] for j in JOINTS])
+    lo, hi = m.jnt_range[[m.joint(j).id for j in JOINTS]].T
+    site = m.site("tool").id
+    q = np.array(q0, float)
+    jacp, jacr = np.zeros((3, m.nv)), np.zeros((3, m.nv))
+    err = np.inf
+    for _ in range(max_iter):
+        d.qpos[qadr] = q
+        mujoco.mj_kinematics(m, d)
+        mujoco.mj_comPos(m, d)
+        pos, mat = d.site_xpos[site], d.site_xmat[site].reshape(3, 3)
+        e_rot = 0.5 * sum(np.cross(mat[:, i], target_mat[:, i]) for i in range(3))
+        e = np.concatenate([target_pos - pos, e_rot])
+        err = np.linalg.norm(e)
+        if err < tol:
+            break
+        mujoco.mj_jacSite(m, d, jacp, jacr, site)
+        J = np.vstack([jacp, jacr])[:, dadr]
+        JJt = J @ J.T + 1e-8 * np.eye(6)
+        J_pinv = J.T @ np.linalg.inv(JJt)
+        dq = J_pinv @ e + (np.eye(7) - J_pinv @ J) @ (0.1 * (q0 - q))
+        q = np.clip(q + dq, lo, hi)
+    if err > 1e-6:
+        raise RuntimeError(f"IK did not converge: residual {err:.2e} for target {target_pos}")
+    return q
+
+
+def compile_scene(spec: PegHoleSpec, **kw) -> mujoco.MjModel:
+    """Compile :func:`build_scene` to an :class:`mujoco.MjModel`."""
+    return build_scene(spec, **kw).compile()
+
+
+def write_scene(
+    spec: PegHoleSpec,
+    out_dir: Path | str,
+    *,
+    robot: bool = True,
+    sim: SimOptions | None = None,
+    name: str = "scene.xml",
+) -> Path:
+    """Write the scene as a self-contained MJCF (meshes inline) and return its path."""
+    out = Path(out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    s = build_scene(spec, robot=robot, sim=sim)
+    s.compile()
+    path = out / name
+    path.write_text(s.to_xml())
+    return path
+
+
+def with_sim(sim: SimOptions, **changes) -> SimOptions:
+    return dataclasses.replace(sim, **changes)
