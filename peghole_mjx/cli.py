@@ -19,6 +19,7 @@ GROUPS: dict[str, str] = {
     "models": "peghole_mjx.geometry.cli",
     "analyze": "peghole_mjx.analysis.cli",
     "experiment": "peghole_mjx.experiments.cli",
+    "envs": "peghole_mjx.envs.cli",
 }
 
 

@@ -94,14 +94,16 @@ def test_ft_sensor_reads_the_peg_weight_at_rest(scenes):
 def test_timestep_is_set_in_exactly_one_place():
     xml_text = " ".join(p.read_text() for p in (REPO / "mjcf").glob("*.xml"))
     assert not re.search(r"timestep\s*=", xml_text) and "<option" not in xml_text
-    hits = []
+    literal, applied = [], []
     for path in (REPO / "peghole_mjx").rglob("*.py"):
         for line in path.read_text().splitlines():
-            if re.search(r"\btimestep\s*(:\s*float\s*)?=(?!=)", line) or "opt.timestep =" in line:
-                hits.append(f"{path.name}: {line.strip()}")
-    assert len(hits) == 2, hits  # SimOptions.timestep default and its one use in _set_options
-    assert any("timestep: float = " in h for h in hits)
-    assert any("s.option.timestep = sim.timestep" in h for h in hits)
+            if re.search(r"\b(timestep|sim_dt)\b\s*(:\s*float\s*)?=\s*[0-9.]", line):
+                literal.append(f"{path.name}: {line.strip()}")
+            if re.search(r"opt(ion)?\.timestep\s*=(?!=)", line):
+                applied.append(f"{path.name}: {line.strip()}")
+    # one numeric value (SimOptions' default) and one place that writes it into a model
+    assert len(literal) == 1 and "timestep: float = " in literal[0], literal
+    assert applied == ["mjcf.py: s.option.timestep = sim.timestep"], applied
 
 
 def test_written_scene_loads_in_mujoco_and_mjx(tmp_path):

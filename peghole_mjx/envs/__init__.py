@@ -1,0 +1,47 @@
+"""Batched MJX environments for peg extraction (Brax / MuJoCo Playground API).
+
+Registry: ``load(name, config=None, config_overrides=None)``, ``get_default_config(name)``,
+``ALL_ENVS``.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+
+from ml_collections import config_dict
+
+from peghole_mjx.envs import dual_extract, rect_extract
+from peghole_mjx.envs.base import PegHoleEnv, State
+from peghole_mjx.errors import UserInputError
+
+_envs: dict[str, type[PegHoleEnv]] = {
+    "RectExtract": rect_extract.RectExtract,
+    "DualExtract": dual_extract.DualExtract,
+}
+_cfgs: dict[str, Callable[[], config_dict.ConfigDict]] = {
+    "RectExtract": rect_extract.default_config,
+    "DualExtract": dual_extract.default_config,
+}
+ALL_ENVS = tuple(_envs)
+
+
+def _check(name: str) -> None:
+    if name not in _envs:
+        raise UserInputError(f"unknown env {name!r}; choose one of {list(ALL_ENVS)}")
+
+
+def get_default_config(name: str) -> config_dict.ConfigDict:
+    """The default config of env ``name``."""
+    _check(name)
+    return _cfgs[name]()
+
+
+def load(
+    name: str, config: config_dict.ConfigDict | None = None, config_overrides: dict | None = None
+) -> PegHoleEnv:
+    """Build env ``name`` with its default config (or ``config``) and flat overrides."""
+    _check(name)
+    return _envs[name](config or get_default_config(name), config_overrides)
+
+
+__all__ = ["ALL_ENVS", "PegHoleEnv", "State", "get_default_config", "load"]

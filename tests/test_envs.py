@@ -1,0 +1,201 @@
+"""RectExtract and DualExtract: API, determinism, randomised resets, failure paths, rewards."""
+
+import json
+import subprocess
+import sys
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+import pytest
+
+from peghole_mjx import envs
+from peghole_mjx.envs.base import REWARD_WEIGHTS, reward_terms
+from peghole_mjx.envs.rollout import random_policy, rollout, scripted_policy
+from peghole_mjx.errors import UserInputError
+
+N_WORLDS = 8
+
+
+class Compiled:
+    """One env with its jitted, vmapped reset and step (compiled once per module)."""
+
+    def __init__(self, name: str):
+        self.env = envs.load(name)
+        self.reset = jax.jit(jax.vmap(self.env.reset))
+        self.step = jax.jit(jax.vmap(self.env.step))
+
+    def keys(self, seed: int, n: int = N_WORLDS):
+        return jax.random.split(jax.random.PRNGKey(seed), n)
+
+
+@pytest.fixture(scope="module", params=envs.ALL_ENVS)
+def compiled(request) -> Compiled:
+    return Compiled(request.param)
+
+
+@pytest.fixture(scope="module")
+def rect() -> Compiled:
+    return Compiled("RectExtract")
+
+
+def test_registry():
+    assert set(envs.ALL_ENVS) == {"RectExtract", "DualExtract"}
+    cfg = envs.get_default_config("DualExtract")
+    assert cfg.preset == "dual-2" and cfg.reward_config.w_stf == REWARD_WEIGHTS["w_stf"]
+    with pytest.raises(UserInputError, match="unknown env"):
+        envs.load("PegInsert")
+    with pytest.raises(UserInputError, match="impl"):
+        envs.load("RectExtract", config_overrides={"impl": "cuda"})
+    env = envs.load(
+        "RectExtract",
+        config_overrides={"compliance_strategy": True, "learn_compliance_centre": True},
+    )
+    assert env.action_size == 8
+
+
+@pytest.mark.slow
+def test_random_actions_200_steps_no_nan_and_determinism(compiled):
+    env = compiled.env
+    s0 = compiled.reset(compiled.keys(0))
+    assert s0.obs.shape == (N_WORLDS, env.observation_size) and env.observation_size == 9
+    actions = jax.random.uniform(
+        jax.random.PRNGKey(1), (200, N_WORLDS, env.action_size), minval=-1, maxval=1
+    )
+
+    def run(s):
+        obs = []
+        for a in actions:
+            s = compiled.step(s, a)
+            obs.append(s.obs)
+        return s, jnp.stack(obs)
+
+    s1, traj1 = run(s0)
+    assert np.isfinite(np.asarray(traj1)).all()
+    assert np.asarray(s1.metrics["nan"]).sum() == 0
+    assert np.isfinite(np.asarray(s1.data.qpos)).all()
+    # same seed: same trajectory (first 50 steps, to keep the dual test short)
+    s2 = compiled.reset(compiled.keys(0))
+    for i, a in enumerate(actions[:50]):
+        s2 = compiled.step(s2, a)
+        np.testing.assert_array_equal(np.asarray(s2.obs), np.asarray(traj1[i]))
+
+
+def test_every_reset_is_randomised(rect):
+    a = rect.reset(rect.keys(0))
+    b = rect.reset(rect.keys(1))
+    for key in ("hole_pos", "cmd_tip", "cmd_mat", "friction_scale"):
+        assert not np.allclose(np.asarray(a.info[key]), np.asarray(b.info[key])), key
+    # worlds of one batch differ from each other too
+    assert len(np.unique(np.asarray(a.info["friction_scale"]))) == N_WORLDS
+    assert not np.allclose(np.asarray(a.data.qpos[0]), np.asarray(a.data.qpos[1]))
+    # each start is a valid inserted pose: tip at depth0 below the (moved) mouth, no contact
+    depth = np.asarray(a.info["depth_mm"])
+    np.testing.assert_allclose(depth, depth[0], atol=0.05)
+    assert (np.asarray(a.data._impl.contact.dist) > 0).all()  # no contact at the start
+
+
+def test_max_lateral_push_ends_in_jamming_not_a_crash(rect):
+    s = rect.reset(rect.keys(2))
+    push = jnp.tile(jnp.array([1.0, 0.0, 0.0, 1.0, 0.0, 0.0]), (N_WORLDS, 1))
+    done_at = np.full(N_WORLDS, -1)
+    m = {k: np.zeros(N_WORLDS) for k in ("jammed", "failure", "success", "reward/end", "nan")}
+    for i in range(150):
+        s = rect.step(s, push)
+        newly = (np.asarray(s.done) > 0) & (done_at < 0)
+        done_at[newly] = i
+        for k in m:  # metrics at the step that ended each episode
+            m[k] = np.where(newly, np.asarray(s.metrics[k]), m[k])
+        if (done_at >= 0).all():
+            break
+    assert (done_at >= 0).all(), "the push must end every episode"
+    assert (m["jammed"] == 1).all() and (m["failure"] == 1).all() and (m["success"] == 0).all()
+    assert (m["reward/end"] == -1).all() and (m["nan"] == 0).all()
+
+
+def test_reward_terms_signs_and_scales():
+    rc = envs.get_default_config("RectExtract").reward_config
+    t = reward_terms(-0.4, 10.0, 300.0, 0.0, 0.0, rc)  # pulling out 0.4 mm with 10 N sideways
+    assert float(t["progress"]) == pytest.approx(0.4)  # pulling out is rewarded
+    assert float(t["force"]) == pytest.approx(-10.0 / 20.0)
+    assert float(t["stiffness"]) == pytest.approx(-0.1 * np.sqrt(2) * 0.3)
+    assert float(t["end"]) == 0.0
+    assert float(reward_terms(0.4, 0.0, 0.0, 0.0, 0.0, rc)["progress"]) == pytest.approx(-0.4)
+    assert float(reward_terms(0.0, 0.0, 0.0, 1.0, 0.0, rc)["end"]) == 1.0
+    assert float(reward_terms(0.0, 0.0, 0.0, 0.0, 1.0, rc)["end"]) == -1.0
+    stiffer = reward_terms(0.0, 0.0, 1000.0, 0.0, 0.0, rc)["stiffness"]
+    assert float(stiffer) < float(t["stiffness"]) < 0
+
+
+def test_step_logs_named_reward_terms_that_sum_to_the_reward(rect):
+    s = rect.reset(rect.keys(3))
+    s = rect.step(s, jnp.tile(jnp.array([0, 0, 0.5, 0, 0, 0.0]), (N_WORLDS, 1)))
+    terms = sum(
+        np.asarray(s.metrics[f"reward/{k}"]) for k in ("progress", "force", "stiffness", "end")
+    )
+    np.testing.assert_allclose(terms, np.asarray(s.reward), rtol=1e-6)
+    assert (np.asarray(s.metrics["reward/progress"]) > 0).all()  # pulled up 2 mm commanded
+
+
+@pytest.mark.slow
+def test_scripted_baseline_solves_dual_and_random_does_not():
+    env = envs.load("DualExtract")
+    res = rollout(env, scripted_policy(env), 8, seed=0, progress=False).summary()
+    assert res.success_rate >= 0.9 and res.nan_worlds == 0
+    assert 0 < res.mean_time_s < 8.0
+    rnd = rollout(env, random_policy(env), 8, seed=0, progress=False).summary()
+    assert rnd.success_rate < res.success_rate
+
+
+@pytest.mark.slow
+def test_cli_rollout_scripted_rect_64_episodes():
+    res = subprocess.run(
+        [
+            sys.executable,
+            "-m",
+            "peghole_mjx.cli",
+            "envs",
+            "rollout",
+            "--env",
+            "RectExtract",
+            "--policy",
+            "scripted",
+            "--episodes",
+            "64",
+            "--json",
+        ],
+        capture_output=True,
+        text=True,
+        timeout=900,
+    )
+    assert res.returncode == 0, res.stderr
+    out = json.loads(res.stdout)
+    for key in (
+        "success_rate",
+        "mean_time_s",
+        "mean_fz_N",
+        "peak_fz_N",
+        "mean_fxy_N",
+        "episodes",
+        "nan_worlds",
+    ):
+        assert key in out
+    assert out["episodes"] == 64 and out["nan_worlds"] == 0
+    assert out["success_rate"] >= 0.9
+    assert out["physics_steps_per_s"] > 0 and out["compile_s"] > 0
+
+
+def test_cli_rollout_bad_input():
+    for args, msg in (
+        (["--env", "RectExtract", "--policy", "nope.ckpt"], "no such checkpoint"),
+        (["--env", "RectExtract", "--episodes", "0"], "--episodes"),
+        (["--env", "RectExtract", "--preset", "dual-1"], "does not fit"),
+    ):
+        res = subprocess.run(
+            [sys.executable, "-m", "peghole_mjx.cli", "envs", "rollout", *args],
+            capture_output=True,
+            text=True,
+            timeout=300,
+        )
+        assert res.returncode == 2 and msg in res.stderr, res.stderr
+        assert "Traceback" not in res.stderr
