@@ -40,7 +40,27 @@ def models_check() -> str:
     return "\n".join(lines)
 
 
-TABLES = {"models_check": models_check}
+def env_rollouts() -> str:
+    data = json.loads((RESULTS / "env_rollouts.json").read_text())
+    lines = [
+        f"Device: {data['device']}; {data['date']}.",
+        "",
+        "| env | preset | policy | episodes | success | mean time s | mean F_z N | peak F_z N | "
+        "mean F_xy N | jammed | NaN worlds | compile s | env steps/s | physics steps/s |",
+        "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|",
+    ]
+    for r in data["rows"]:
+        lines.append(
+            f"| {r['env']} | {r['preset']} | {r['policy']} | {r['episodes']} | "
+            f"{r['success_rate']:.3f} | "
+            f"{r['mean_time_s']:.2f} | {r['mean_fz_N']:.2f} | {r['peak_fz_N']:.2f} | "
+            f"{r['mean_fxy_N']:.2f} | {r['jammed']} | {r['nan_worlds']} | {r['compile_s']} | "
+            f"{r['env_steps_per_s']} | {r['physics_steps_per_s']} |"
+        )
+    return "\n".join(lines)
+
+
+TABLES = {"models_check": models_check, "env_rollouts": env_rollouts}
 
 
 def render(text: str) -> str:

@@ -138,13 +138,19 @@ def test_step_logs_named_reward_terms_that_sum_to_the_reward(rect):
 
 
 @pytest.mark.slow
-def test_scripted_baseline_solves_dual_and_random_does_not():
+def test_scripted_baseline_solves_dual():
+    """The 64-episode runs of both envs are in benchmarks/results/env_rollouts.json."""
     env = envs.load("DualExtract")
     res = rollout(env, scripted_policy(env), 8, seed=0, progress=False).summary()
     assert res.success_rate >= 0.9 and res.nan_worlds == 0
     assert 0 < res.mean_time_s < 8.0
+
+
+@pytest.mark.slow
+def test_random_policy_rarely_extracts_the_rect_peg(rect):
+    env = rect.env
     rnd = rollout(env, random_policy(env), 8, seed=0, progress=False).summary()
-    assert rnd.success_rate < res.success_rate
+    assert rnd.success_rate <= 0.25  # random dz averages zero: no net pull
 
 
 @pytest.mark.slow

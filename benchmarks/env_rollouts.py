@@ -1,0 +1,58 @@
+"""Batched rollouts of both environments with the scripted baseline and the random policy
+(the row's ``episodes`` says how many).
+
+Writes ``benchmarks/results/env_rollouts.json`` (device, versions, date, per env and policy the
+keys of ``peghole envs rollout --json`` plus compile time and steps/s). Run:
+``python benchmarks/env_rollouts.py [--episodes 64]``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+from pathlib import Path
+
+import peghole_mjx  # noqa: F401  (sets the XLA CPU flag before JAX starts)
+from peghole_mjx import envs
+from peghole_mjx.envs.cli import make_policy
+from peghole_mjx.envs.rollout import rollout
+from peghole_mjx.provenance import provenance
+
+OUT = Path(__file__).resolve().parent / "results" / "env_rollouts.json"
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__)
+    ap.add_argument("--episodes", type=int, default=64)
+    ap.add_argument(
+        "--random-episodes",
+        type=int,
+        default=16,
+        help="episodes of the random policy (it runs to the time limit: costly)",
+    )
+    ap.add_argument("--out", type=Path, default=OUT)
+    args = ap.parse_args()
+    rows = []
+    for name in envs.ALL_ENVS:
+        env = envs.load(name)
+        for policy in ("scripted", "random"):
+            n = args.episodes if policy == "scripted" else args.random_episodes
+            res = rollout(env, make_policy(env, policy), n, seed=0)
+            row = {
+                "env": name,
+                "preset": env.config.preset,
+                "policy": policy,
+                **res.summary().as_dict(),
+                "compile_s": round(res.compile_s, 1),
+                "env_steps_per_s": round(res.env_steps_per_s, 1),
+                "physics_steps_per_s": round(res.physics_steps_per_s, 1),
+            }
+            print(json.dumps(row), flush=True)
+            rows.append(row)
+    args.out.write_text(
+        json.dumps({**provenance(), "episodes": args.episodes, "rows": rows}, indent=2) + "\n"
+    )
+
+
+if __name__ == "__main__":
+    main()
