@@ -10,10 +10,10 @@ is logged against the tip depth.
 
 Batching: all worlds of a preset run through ``jax.vmap`` inside one jitted, time-chunked
 ``lax.scan`` (tqdm shows the chunks). With ``XLA_FLAGS=--xla_cpu_use_fusion_emitters=false``
-(set by :mod:`peghole_mjx` at import) the batched step is fast on the CPU too: about 5000
-world-steps/s for a rect scene and a few hundred for the dual scene (2-core CPU, 18 worlds,
-measured; see docs/control.md). ``batch="map"`` runs the worlds one after another (each still
-a jitted scan); it gives the same numbers and only saves memory.
+(set by :mod:`peghole_mjx` at import) the batched step is fast on the CPU too: about 4000
+world-steps/s for a rect scene and 60-200 for the contact-rich dual scene (2-core CPU, 18
+worlds, measured; see docs/control.md). ``batch="map"`` runs the worlds one after another
+(each still a jitted scan); it gives the same numbers and only saves memory.
 """
 
 from __future__ import annotations
