@@ -16,6 +16,9 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parents[1]
 RESULTS = ROOT / "benchmarks" / "results"
 README = ROOT / "README.md"
+sys.path.insert(0, str(ROOT / "benchmarks"))
+
+from bench_common import ENGINES, read_csv  # noqa: E402
 
 
 def models_check() -> str:
@@ -60,7 +63,156 @@ def env_rollouts() -> str:
     return "\n".join(lines)
 
 
-TABLES = {"models_check": models_check, "env_rollouts": env_rollouts}
+def _num(x, fmt: str = ".1f") -> str:
+    return "-" if x is None else format(x, fmt)
+
+
+def throughput_csvs(results: Path = RESULTS) -> list[Path]:
+    """The committed full-sweep throughput CSVs, one per device (``--quick`` ones left out)."""
+    return sorted(p for p in results.glob("throughput_*.csv") if not p.stem.endswith("_quick"))
+
+
+def throughput(results: Path = RESULTS) -> str:
+    """One table per device CSV, every row with the command that re-measures it."""
+    csvs = throughput_csvs(results)
+    if not csvs:
+        return "No throughput results committed yet: run `python benchmarks/throughput.py`."
+    out: list[str] = []
+    for path in csvs:
+        rows = read_csv(path)
+        side = path.with_suffix(".json")
+        meta = json.loads(side.read_text()) if side.exists() else {}
+        dates = sorted(r["date"] for r in rows)
+        vers = sorted({r["versions"] for r in rows})
+        rel = path.relative_to(ROOT) if path.is_relative_to(ROOT) else path.name
+        out += [
+            f"[`{rel}`]({rel}): {meta.get('device', '?')}; "
+            f"{dates[0]} to {dates[-1]}; {' | '.join(vers)}."
+            + (f" Note: {meta['note']}." if meta.get("note") else "")
+            + (
+                f" GPU rows: {meta['gpu_rows']}."
+                if meta.get("gpu_rows", "measured") != "measured"
+                else ""
+            ),
+            "",
+            "| engine | scene | worlds | physics steps/s | env steps/s | compile s | peak MB "
+            "| device | reproduce |",
+            "|---|---|---|---|---|---|---|---|---|",
+        ]
+        for r in rows:
+            cmd = (
+                f"`python benchmarks/throughput.py --engines {r['engine']} --scenes {r['scene']} "
+                f"--worlds {r['worlds']} --merge`"
+            )
+            out.append(
+                f"| {r['engine']} | {r['scene']} | {r['worlds']} | "
+                f"{_num(r['physics_steps_per_s'])} | {_num(r['env_steps_per_s'])} | "
+                f"{_num(r['compile_s'])} | {_num(r['peak_mem_mb'])} | {r['device']} | {cmd} |"
+            )
+        out.append("")
+        for scene in sorted({r["scene"] for r in rows}):
+            best = {}
+            for e in ENGINES:
+                pts = [
+                    (r["physics_steps_per_s"], r["worlds"])
+                    for r in rows
+                    if r["engine"] == e and r["scene"] == scene and r["physics_steps_per_s"]
+                ]
+                if pts:
+                    best[e] = max(pts)
+            one_pb = [
+                r["physics_steps_per_s"]
+                for r in rows
+                if r["engine"] == "pybullet" and r["scene"] == scene and r["worlds"] == 1
+            ]
+            parts = [f"{e} {v:.1f} (worlds={w})" for e, (v, w) in best.items()]
+            ratios = []
+            for mjx in ("mjx-jax", "mjx-warp"):
+                if mjx not in best:
+                    continue
+                if "mujoco-c-rollout" in best:
+                    ratios.append(
+                        f"{mjx} / mujoco-c-rollout = "
+                        f"{best[mjx][0] / best['mujoco-c-rollout'][0]:.3g}"
+                    )
+                if one_pb:
+                    ratios.append(f"{mjx} / one PyBullet process = {best[mjx][0] / one_pb[0]:.3g}")
+            out.append(
+                f"Best physics steps/s, {scene}: "
+                + "; ".join(parts)
+                + (f". Ratios: {'; '.join(ratios)}." if ratios else ".")
+            )
+            out.append("")
+    return "\n".join(out).rstrip()
+
+
+def roofline() -> str:
+    path = RESULTS / "roofline.json"
+    if not path.exists():
+        return "No roofline estimate committed yet: `python benchmarks/throughput.py --roofline`."
+    r = json.loads(path.read_text())
+    lines = [
+        f"From [`benchmarks/results/roofline.json`](benchmarks/results/roofline.json) "
+        f"({r['date']}).",
+        "",
+        "| scene | mjx.Data B/world | GPU | state-traffic bound, physics steps/s | arithmetic "
+        "| XLA-HLO-traffic estimate, physics steps/s |",
+        "|---|---|---|---|---|---|",
+    ]
+    for scene, e in r["scenes"].items():
+        for gpu, est in e["roofline"].items():
+            hlo = e.get("xla_hlo_roofline", {}).get(gpu)
+            hlo_txt = f"{hlo['max_physics_steps_per_s']:.3g} ({hlo['arithmetic']})" if hlo else "-"
+            lines.append(
+                f"| {scene} | {e['mjx_data_bytes_per_world']} | {gpu} | "
+                f"{est['max_physics_steps_per_s']:.3g} | {est['arithmetic']} | {hlo_txt} |"
+            )
+    return "\n".join(lines)
+
+
+# the hook for "ours" (the Brax SAC stack, peghole_mjx/training): where its time-to-success
+# JSON is committed and which keys are read, shared with the plot
+from plot import OURS_JSON  # noqa: E402
+from plot import TIME_KEYS as _TIME_KEYS  # noqa: E402
+
+
+def _tts_row(label: str, path: Path) -> str:
+    if not path.exists():
+        return f"| {label} | pending | - | - | - | - | - | - | - |"
+    d = json.loads(path.read_text())
+    t = next((d[k] for k in _TIME_KEYS if d.get(k) is not None), None)
+    thr = d.get("success_threshold", 0.95)
+    reached = f"{t:.0f}" if t is not None else f"not reached in {d.get('budget_s', '?')} s"
+    steps = d.get("env_steps", "-")
+    rate = d.get("train_env_steps_per_s", "-")
+    succ = d.get("final_success_rate")
+    cmd = f"`{d['command']}`" if d.get("command") else "-"
+    return (
+        f"| {label} | {d.get('device', '?')} | {d.get('train_wall_s', '-')} | {steps} | {rate} | "
+        f"{'-' if succ is None else f'{succ:.2f}'} | {reached} (threshold {thr}) | "
+        f"{d.get('date', '?')} | {cmd} |"
+    )
+
+
+def time_to_success() -> str:
+    lines = [
+        "| stack | device | training wall s | env steps | env steps/s | success reached "
+        "| time to threshold s | date | reproduce |",
+        "|---|---|---|---|---|---|---|---|---|",
+    ]
+    for p in sorted(RESULTS.glob("seed_stack_*.json")):
+        lines.append(_tts_row(f"seed stack: PyBullet + SB3 SAC (`{p.name}`)", p))
+    lines.append(_tts_row(f"ours: MJX + Brax SAC (`{OURS_JSON.name}`)", OURS_JSON))
+    return "\n".join(lines)
+
+
+TABLES = {
+    "models_check": models_check,
+    "env_rollouts": env_rollouts,
+    "throughput": throughput,
+    "roofline": roofline,
+    "time_to_success": time_to_success,
+}
 
 
 def render(text: str) -> str:

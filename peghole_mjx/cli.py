@@ -20,6 +20,8 @@ GROUPS: dict[str, str] = {
     "analyze": "peghole_mjx.analysis.cli",
     "experiment": "peghole_mjx.experiments.cli",
     "envs": "peghole_mjx.envs.cli",
+    "train": "peghole_mjx.training.cli",  # also adds `evaluate` and `compare`
+    "demo": "peghole_mjx.demo",
 }
 
 

@@ -205,3 +205,39 @@ def test_cli_rollout_bad_input():
         )
         assert res.returncode == 2 and msg in res.stderr, res.stderr
         assert "Traceback" not in res.stderr
+
+
+def test_contact_overflow_reads_warps_buffer_bits_only():
+    """MJX-JAX data never overflows; Warp's sticky bitmask counts only dropped contacts/rows."""
+    from types import SimpleNamespace
+
+    from peghole_mjx._mjx import mjx
+    from peghole_mjx.envs.base import contact_overflow
+
+    env = envs.load("RectExtract")
+    assert float(contact_overflow(mjx.make_data(env.mjx_model, impl="jax"))) == 0.0
+
+    def warp_like(bits):
+        return SimpleNamespace(_impl=SimpleNamespace(overflow=jnp.array([bits], jnp.int32)))
+
+    assert float(contact_overflow(warp_like(0))) == 0.0
+    assert float(contact_overflow(warp_like(1 << 3))) == 1.0  # NARROWPHASE: contacts dropped
+    assert float(contact_overflow(warp_like(1 << 0))) == 1.0  # NEFC: constraint rows dropped
+    assert float(contact_overflow(warp_like(1 << 9))) == 0.0  # solver iteration limit only
+
+
+def _cuda_warp() -> bool:
+    from peghole_mjx._mjx import WARP_AVAILABLE
+
+    return WARP_AVAILABLE and any(d.platform == "gpu" for d in jax.devices())
+
+
+@pytest.mark.gpu
+@pytest.mark.skipif(not _cuda_warp(), reason="needs a CUDA GPU and warp-lang (impl='warp')")
+def test_warp_contact_buffer_overflow_ends_the_episode_and_is_counted():
+    """A deliberately tiny contact buffer must be reported, not silently drop contacts."""
+    env = envs.load("RectExtract", config_overrides={"impl": "warp", "naconmax": 1})
+    res = rollout(env, scripted_policy(env), 4, seed=0, progress=False)
+    s = res.summary()
+    assert s.overflow_worlds > 0
+    assert s.success_rate < 1.0

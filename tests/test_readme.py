@@ -23,3 +23,19 @@ def test_ci_runs_the_readme_test_command_verbatim():
     assert len(block) == 2, "the quick start has exactly two commands"
     test_cmd = next(line for line in block if "pytest" in line)
     assert test_cmd in ci.splitlines()
+
+
+def test_quick_start_main_job_is_the_demo():
+    readme = (ROOT / "README.md").read_text()
+    block = readme.split("```bash", 1)[1].split("```", 1)[0].strip().splitlines()
+    main_cmd = next(line for line in block if "pytest" not in line)
+    assert main_cmd.endswith("peghole demo")
+
+
+def test_every_cli_command_is_documented_in_the_readme():
+    from peghole_mjx.cli import build_parser
+
+    readme = (ROOT / "README.md").read_text()
+    sub = next(a for a in build_parser()._actions if a.dest == "group")
+    for name in sub.choices:
+        assert f"`peghole {name}" in readme, name

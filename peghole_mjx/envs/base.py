@@ -104,6 +104,26 @@ def base_config(preset: str) -> config_dict.ConfigDict:
     )
 
 
+#: MuJoCo Warp's ``OverflowType`` bits that mean dropped contacts or constraint rows: NEFC,
+#: NJMAX_NNZ, BROADPHASE, NARROWPHASE, CCD (mujoco_warp/_src/types.py). Its ``overflow``
+#: bitmask is per world and sticky until the world's data is reset.
+WARP_CONTACT_OVERFLOW_BITS = 0b11111
+
+
+def contact_overflow(data) -> jax.Array:
+    """1.0 if MuJoCo Warp overflowed a contact or constraint buffer in this world, else 0.0.
+
+    Warp drops what does not fit in ``naconmax`` / ``njmax`` and only prints a warning; the env
+    ends such an episode as a failure and counts it (``metrics["overflow"]``). MJX-JAX sizes
+    its buffers statically and never overflows: always 0.0 there.
+    """
+    flags = getattr(getattr(data, "_impl", None), "overflow", None)
+    if flags is None:
+        return jnp.zeros((), jnp.float32)
+    hit = (jnp.asarray(flags).astype(jnp.int32) & WARP_CONTACT_OVERFLOW_BITS) != 0
+    return jnp.any(hit).astype(jnp.float32)
+
+
 def reward_terms(dz_mm, fxy_N, k_xy_N_m, success, failure, rc) -> dict[str, jax.Array]:
     """The named reward terms of eq (4.4) (Table 4.1 weights in ``rc``).
 
@@ -357,6 +377,7 @@ class PegHoleEnv:
             "failure",
             "jammed",
             "nan",
+            "overflow",
             "extraction_time_s",
             "mean_fz_N",
             "peak_fz_N",
@@ -482,6 +503,7 @@ class PegHoleEnv:
         # a NaN world keeps its last finite state and ends its episode; the batch goes on
         data = jax.tree.map(lambda new, old: jnp.where(finite, new, old), data, state.data)
         nan = 1.0 - finite.astype(jnp.float32)
+        overflow = contact_overflow(data)  # warp only: contacts were dropped, end the episode
 
         wrench = jnp.where(finite, wrench, 0.0)
         f = wrench[:3]
@@ -494,7 +516,8 @@ class PegHoleEnv:
         success = (depth < -c.success_margin_mm).astype(jnp.float32) * (1.0 - nan)
         step = info["step"] + 1
         timeout = (step >= c.episode_length).astype(jnp.float32)
-        failure = jnp.maximum(jnp.maximum(jammed, nan), timeout) * (1.0 - success)
+        failure = jnp.maximum(jnp.maximum(jammed, nan), jnp.maximum(timeout, overflow))
+        failure = failure * (1.0 - success)
         done = jnp.maximum(success, failure)
 
         terms = reward_terms(dz, fxy, k_xy, success, failure, rc)
@@ -528,6 +551,7 @@ class PegHoleEnv:
             failure=failure,
             jammed=jammed * (1.0 - success),
             nan=nan,
+            overflow=overflow,
             extraction_time_s=jnp.where(success > 0, n * c.ctrl_dt, 0.0),
             mean_fz_N=sum_fz / n,
             peak_fz_N=peak_fz,

@@ -5,7 +5,6 @@ from __future__ import annotations
 import argparse
 import json
 import sys
-from pathlib import Path
 
 from peghole_mjx.errors import UserInputError
 
@@ -41,7 +40,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     r.add_argument(
         "--policy",
         default="scripted",
-        help="scripted | random | path of a policy checkpoint from `peghole train`",
+        help="scripted | random | a policy: pretrained name (rect, dual), policy or run directory",
     )
     r.add_argument("--episodes", type=int, default=64)
     r.add_argument("--seed", type=int, default=0)
@@ -59,24 +58,11 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     r.set_defaults(func=cmd_rollout)
 
 
-def make_policy(env, name: str, seed: int = 0):
-    """``scripted``, ``random`` or a checkpoint path -> ``policy(obs, rng) -> action``."""
+def make_policy(env, name: str):
+    """``scripted`` or ``random`` -> ``policy(obs, rng) -> action``."""
     from peghole_mjx.envs.rollout import random_policy, scripted_policy
 
-    if name == "scripted":
-        return scripted_policy(env)
-    if name == "random":
-        return random_policy(env)
-    path = Path(name)
-    if not path.exists():
-        raise UserInputError(f"--policy: no such checkpoint {path} (or use scripted|random)")
-    try:
-        from peghole_mjx.policies import load_policy
-    except ModuleNotFoundError:
-        raise UserInputError(
-            "policy checkpoints need the training module (peghole train), not installed here"
-        ) from None
-    return load_policy(path, env)
+    return scripted_policy(env) if name == "scripted" else random_policy(env)
 
 
 def cmd_rollout(args: argparse.Namespace) -> int:
@@ -88,14 +74,27 @@ def cmd_rollout(args: argparse.Namespace) -> int:
     overrides = dict(args.overrides)
     if args.preset:
         overrides["preset"] = args.preset
+    bundle, params = None, None
+    if args.policy not in ("scripted", "random"):
+        from peghole_mjx.policies import load_policy
+
+        bundle = load_policy(args.policy)
+        if bundle.env_name != args.env:
+            raise UserInputError(f"policy {args.policy} was trained on {bundle.env_name}")
     try:
-        env = load(args.env, config_overrides=overrides or None)
+        if bundle is not None:  # the env exactly as trained (plus --set)
+            env = bundle.make_env(overrides)
+        else:
+            env = load(args.env, config_overrides=overrides or None)
     except (KeyError, AttributeError) as exc:
         raise UserInputError(f"bad config override: {exc}") from None
     if env.spec.kind != ("rect" if args.env == "RectExtract" else "dual"):
         raise UserInputError(f"preset {env.config.preset} does not fit {args.env}")
-    policy = make_policy(env, args.policy, args.seed)
-    res = rollout(env, policy, args.episodes, seed=args.seed, progress=not args.json)
+    if bundle is not None:
+        policy, params = bundle.policy_fn(), bundle.params
+    else:
+        policy = make_policy(env, args.policy)
+    res = rollout(env, policy, args.episodes, seed=args.seed, progress=not args.json, params=params)
     summary = res.summary().as_dict()
     timing = {
         "compile_s": round(res.compile_s, 2),
@@ -116,7 +115,8 @@ def cmd_rollout(args: argparse.Namespace) -> int:
         print(f"  mean |F_xy|    {summary['mean_fxy_N']:.2f} N")
         print(
             f"  failures       jammed {summary['jammed']}, timeouts {summary['timeouts']}, "
-            f"NaN worlds {summary['nan_worlds']}"
+            f"NaN worlds {summary['nan_worlds']}, "
+            f"contact-buffer overflows {summary['overflow_worlds']}"
         )
         print(
             f"  compile {timing['compile_s']} s (first {25} steps included); "

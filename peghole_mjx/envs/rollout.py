@@ -1,6 +1,8 @@
 """Batched evaluation rollouts: N episodes side by side, each run until its first ``done``.
 
-Policies are functions ``policy(obs, rng) -> action`` (batched over worlds by ``vmap``):
+Policies are functions ``policy(obs, rng) -> action`` (batched over worlds by ``vmap``), or,
+for learned policies whose parameters change between calls without recompiling,
+``policy(params, obs, rng) -> action`` passed with ``params=...``:
 
 * :func:`scripted_policy` - the thesis's Ch 2-3 method and the baseline of every RL
   comparison: fixed compliance with the compliance centre at the peg tip, straight pull at a
@@ -10,10 +12,12 @@ Policies are functions ``policy(obs, rng) -> action`` (batched over worlds by ``
 
 from __future__ import annotations
 
+import functools
 import sys
 import time
 from collections.abc import Callable
 from dataclasses import asdict, dataclass
+from typing import Any
 
 import jax
 import jax.numpy as jnp
@@ -57,8 +61,11 @@ class RolloutSummary:
     mean_fxy_N: float  # mean over episodes of the per-episode mean |F_xy|
     episodes: int
     nan_worlds: int
+    overflow_worlds: int  # MuJoCo Warp dropped contacts (impl="warp" only)
     jammed: int
     timeouts: int
+    mean_return: float  # undiscounted episode return (eq 4.4 rewards summed)
+    mean_discounted_return: float  # sum_i gamma^i r_i (eq 4.1 with E9's exponent)
 
     def as_dict(self) -> dict:
         return asdict(self)
@@ -93,8 +100,15 @@ class RolloutResult:
             mean_fxy_N=float(e["mean_fxy_N"].mean()),
             episodes=len(ok),
             nan_worlds=int((e["nan"] > 0).sum()),
+            overflow_worlds=int((e["overflow"] > 0).sum()),
             jammed=int((e["jammed"] > 0).sum()),
-            timeouts=int(((e["failure"] > 0) & (e["jammed"] == 0) & (e["nan"] == 0)).sum()),
+            timeouts=int(
+                (
+                    (e["failure"] > 0) & (e["jammed"] == 0) & (e["nan"] == 0) & (e["overflow"] == 0)
+                ).sum()
+            ),
+            mean_return=float(e["return"].mean()),
+            mean_discounted_return=float(e["discounted_return"].mean()),
         )
 
 
@@ -103,6 +117,7 @@ _KEYS = (
     "failure",
     "jammed",
     "nan",
+    "overflow",
     "extraction_time_s",
     "mean_fz_N",
     "peak_fz_N",
@@ -110,20 +125,30 @@ _KEYS = (
 )
 
 
-def _make_runner(env: PegHoleEnv, policy: Policy, chunk: int):
-    """Jitted (reset, run-chunk) over a batch of worlds; finished worlds are frozen."""
+@functools.lru_cache(maxsize=16)
+def make_runner(env: PegHoleEnv, policy: Callable, chunk: int, with_params: bool, gamma: float):
+    """Jitted (reset, run-chunk) over a batch of worlds; finished worlds are frozen.
+
+    Cached per (env, policy, chunk): a trainer that evaluates the same policy function with
+    new parameters compiles once.
+    """
 
     def reset(rngs):
+        n = rngs.shape[0]
         states = jax.vmap(env.reset)(rngs)
-        record = {k: jnp.zeros(rngs.shape[0]) for k in _KEYS}
-        finished = jnp.zeros(rngs.shape[0], bool)
-        return states, record, finished
+        record = {k: jnp.zeros(n) for k in (*_KEYS, "return", "discounted_return")}
+        acc = {"return": jnp.zeros(n), "discounted_return": jnp.zeros(n), "gamma_i": jnp.ones(n)}
+        finished = jnp.zeros(n, bool)
+        return states, (record, acc), finished
 
     def one_step(carry, _):
-        states, record, finished, rng = carry
+        states, (record, acc), finished, rng, params = carry
         rng, key = jax.random.split(rng)
         keys = jax.random.split(key, finished.shape[0])
-        actions = jax.vmap(policy)(states.obs, keys)
+        if with_params:
+            actions = jax.vmap(policy, in_axes=(None, 0, 0))(params, states.obs, keys)
+        else:
+            actions = jax.vmap(policy)(states.obs, keys)
         new = jax.vmap(env.step)(states, actions)
         done_now = (new.done > 0) & ~finished
 
@@ -132,12 +157,21 @@ def _make_runner(env: PegHoleEnv, policy: Policy, chunk: int):
             return jnp.where(mask, o, n)
 
         states = jax.tree.map(keep, new, states)
-        record = {k: jnp.where(done_now, new.metrics[k], record[k]) for k in _KEYS}
-        return (states, record, finished | done_now, rng), None
+        r = jnp.where(finished, 0.0, new.reward)
+        acc = {
+            "return": acc["return"] + r,
+            "discounted_return": acc["discounted_return"] + acc["gamma_i"] * r,
+            "gamma_i": acc["gamma_i"] * gamma,
+        }
+        record = {
+            **{k: jnp.where(done_now, new.metrics[k], record[k]) for k in _KEYS},
+            **{k: jnp.where(done_now, acc[k], record[k]) for k in ("return", "discounted_return")},
+        }
+        return (states, (record, acc), finished | done_now, rng, params), None
 
-    def run(states, record, finished, rng):
-        (states, record, finished, rng), _ = jax.lax.scan(
-            one_step, (states, record, finished, rng), None, length=chunk
+    def run(states, record, finished, rng, params):
+        (states, record, finished, rng, _), _ = jax.lax.scan(
+            one_step, (states, record, finished, rng, params), None, length=chunk
         )
         return states, record, finished, rng
 
@@ -151,14 +185,21 @@ def rollout(
     seed: int = 0,
     chunk: int = 25,
     progress: bool = True,
+    params: Any = None,
+    gamma: float = 0.99,
 ) -> RolloutResult:
-    """Run ``episodes`` episodes in one batch until each is done (success or failure)."""
-    reset, run = _make_runner(env, policy, chunk)
+    """Run ``episodes`` episodes in one batch until each is done (success or failure).
+
+    The episodes' start states depend only on ``seed`` and ``episodes``: two policies run with
+    the same seed meet the same randomised episodes. With ``params``, ``policy`` is called as
+    ``policy(params, obs, rng)``.
+    """
+    reset, run = make_runner(env, policy, chunk, params is not None, gamma)
     rng = jax.random.PRNGKey(seed)
     rng, key = jax.random.split(rng)
     t0 = time.perf_counter()
     states, record, finished = reset(jax.random.split(key, episodes))
-    states, record, finished, rng = run(states, record, finished, rng)
+    states, record, finished, rng = run(states, record, finished, rng, params)
     jax.block_until_ready(finished)
     compile_s = time.perf_counter() - t0  # first chunk: compile + chunk steps
     n_chunks = -(-env.config.episode_length // chunk)
@@ -177,14 +218,14 @@ def rollout(
     for _ in range(n_chunks - 1):
         if bool(finished.all()):
             break
-        states, record, finished, rng = run(states, record, finished, rng)
+        states, record, finished, rng = run(states, record, finished, rng, params)
         jax.block_until_ready(finished)
         steps += chunk
         bar.update(chunk)
         bar.set_postfix(done=f"{int(finished.sum())}/{episodes}")
     bar.close()
     run_s = time.perf_counter() - t1
-    per_episode = {k: np.asarray(v) for k, v in record.items()}
+    per_episode = {k: np.asarray(v) for k, v in record[0].items()}
     timed = steps - chunk  # steps after the compiled first chunk
     return RolloutResult(
         per_episode=per_episode,

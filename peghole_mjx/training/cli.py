@@ -1,0 +1,161 @@
+"""``peghole train``, ``peghole evaluate`` and ``peghole compare``."""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import sys
+from pathlib import Path
+
+from peghole_mjx.errors import UserInputError
+
+
+def _override(text: str) -> tuple[str, object]:
+    from peghole_mjx.envs.cli import _override as parse
+
+    return parse(text)
+
+
+def add_parser(sub: argparse._SubParsersAction) -> None:
+    from peghole_mjx.envs import ALL_ENVS
+
+    t = sub.add_parser(
+        "train",
+        help="train a SAC policy (Brax) on an MJX env",
+        description="Brax SAC on RectExtract or DualExtract with evaluation, metrics.csv, "
+        "TensorBoard logs and a checkpoint at every evaluation; writes learning curves, a "
+        "rollout GIF and summary.json at the end. Hyperparameters: train/configs/<ENV>.json "
+        "(profiles full | cpu | quick). Uses all local GPUs (pmap).",
+    )
+    t.add_argument("--env", choices=ALL_ENVS, help="required unless --resume")
+    t.add_argument(
+        "--compliance-strategy",
+        choices=("on", "off"),
+        default="on",
+        help="on: the action also sets the lateral stiffness k_xy (RL + CS, thesis Sec 4.2); "
+        "off: fixed stiffness (default: on)",
+    )
+    t.add_argument("--profile", choices=("full", "cpu", "quick"), default="full")
+    t.add_argument("--quick", action="store_true", help="same as --profile quick (CPU smoke run)")
+    t.add_argument("--out", type=Path, help="run directory (required unless --resume)")
+    t.add_argument("--resume", type=Path, metavar="DIR", help="continue the run in DIR")
+    t.add_argument(
+        "--set",
+        dest="overrides",
+        type=_override,
+        action="append",
+        default=[],
+        metavar="KEY=VALUE",
+        help="hyperparameter override, e.g. --set num_envs=64; env.KEY=VALUE for the env config",
+    )
+    t.add_argument("--no-progress", action="store_true", help="no progress bar")
+    t.add_argument("--no-video", action="store_true", help="skip the final rollout GIF")
+    t.set_defaults(func=cmd_train)
+
+    e = sub.add_parser(
+        "evaluate",
+        help="evaluate a policy against the scripted baseline on the same episodes",
+        description="Runs the policy and the scripted fixed-compliance baseline (thesis Ch 2-3 "
+        "method) on the same randomised episodes and reports success_rate, mean_time_s, "
+        "mean_fz_N, peak_fz_N, mean_fxy_N for each, and the force reduction beside the "
+        "thesis's R3-R5. CHECKPOINT: a policy directory, a training run directory, or a "
+        "pretrained name (rect, dual).",
+    )
+    e.add_argument("checkpoint")
+    e.add_argument("--episodes", type=int, default=256)
+    e.add_argument("--seed", type=int, default=0)
+    e.add_argument("--json", action="store_true", help="print one JSON object")
+    e.add_argument("--out", type=Path, help="also write the JSON object to this file")
+    e.set_defaults(func=cmd_evaluate)
+
+    c = sub.add_parser(
+        "compare",
+        help="plot the learning curves of several runs on shared axes (Figs 4.5-4.7)",
+    )
+    c.add_argument("runs", nargs="+", type=Path, help="training run directories")
+    c.add_argument("--out", type=Path, required=True, help="PNG to write")
+    c.set_defaults(func=cmd_compare)
+
+
+def cmd_train(args: argparse.Namespace) -> int:
+    from peghole_mjx.training.config import load_train_config
+    from peghole_mjx.training.run import TrainingRun
+
+    progress = not args.no_progress
+    if args.resume:
+        over = dict(args.overrides)
+        if args.env or set(over) - {"num_timesteps"}:
+            raise UserInputError(
+                "--resume takes the run's own config: drop --env and --set "
+                "(only --set num_timesteps=N, to extend or end a run, is allowed)"
+            )
+        run = TrainingRun.resume(
+            args.resume,
+            progress=progress,
+            render=not args.no_video,
+            num_timesteps=over.get("num_timesteps"),
+        )
+        summary = run.run(resume=True)
+    else:
+        if not args.env or not args.out:
+            raise UserInputError("--env and --out are required (or --resume DIR)")
+        cfg = load_train_config(
+            args.env,
+            profile="quick" if args.quick else args.profile,
+            overrides=dict(args.overrides),
+            compliance_strategy=args.compliance_strategy == "on",
+        )
+        run = TrainingRun(cfg, args.out, progress=progress, render=not args.no_video)
+        summary = run.run(resume=False)
+    fe = summary["final_eval"]
+    print(
+        f"{summary['env']}: {summary['env_steps']} env steps in {summary['wall_s']} s; "
+        f"eval success {fe.get('success_rate', float('nan')):.3f}, "
+        f"return {fe.get('mean_return', float('nan')):.2f} "
+        f"(untrained {summary['untrained_eval_return']:.2f}); outputs in {run.out}"
+    )
+    return 0
+
+
+def cmd_evaluate(args: argparse.Namespace) -> int:
+    from peghole_mjx.training.evaluate import evaluate
+
+    if args.episodes < 1:
+        raise UserInputError("--episodes must be >= 1")
+    res = evaluate(args.checkpoint, args.episodes, seed=args.seed, progress=not args.json)
+    text = json.dumps(res, indent=None if args.json else 2, allow_nan=True)
+    if args.out:
+        args.out.parent.mkdir(parents=True, exist_ok=True)
+        args.out.write_text(json.dumps(res, indent=2) + "\n")
+    if args.json:
+        print(text)
+        return 0
+    p, b, th = res["policy"], res["baseline"], res["thesis"]
+    print(f"{res['env']} ({res['preset']}), {res['episodes']} episodes, seed {res['seed']}")
+    print(f"{'':22s}{'policy':>10s}{'baseline':>10s}{'thesis RL':>11s}")
+    rows = [
+        ("success rate", "success_rate", "{:.3f}", th["success_rate"]),
+        ("mean time s", "mean_time_s", "{:.2f}", th["mean_time_s"]),
+        ("mean |F_z| N", "mean_fz_N", "{:.2f}", None),
+        ("peak |F_z| N", "peak_fz_N", "{:.2f}", th["peak_fz_N_policy"]),
+        ("mean |F_xy| N", "mean_fxy_N", "{:.2f}", None),
+    ]
+    for name, key, fmt, thesis in rows:
+        t = "" if thesis is None else fmt.format(thesis)
+        print(f"{name:22s}{fmt.format(p[key]):>10s}{fmt.format(b[key]):>10s}{t:>11s}")
+    red = res["force_reduction_pct"]
+    red_s = "nan" if math.isnan(red) else f"{red:.1f} %"
+    print(f"force reduction vs baseline: {red_s} (thesis R3: {th['force_reduction_pct']} %)")
+    return 0
+
+
+def cmd_compare(args: argparse.Namespace) -> int:
+    from peghole_mjx.training.plots import plot_curves
+
+    for r in args.runs:
+        if not (r / "metrics.csv").exists():
+            raise UserInputError(f"{r}: no metrics.csv (not a training run directory)")
+    out = plot_curves(args.runs, args.out, title="RL vs RL + compliance strategy")
+    print(out, file=sys.stdout)
+    return 0

@@ -1,0 +1,79 @@
+"""Learning curves in the style of the thesis's Figs 4.5-4.7, from runs' ``metrics.csv``.
+
+Panels, each against env steps: (a) extraction force per episode (mean |F_z|, Fig 4.5),
+(b) mean |F_xy| per episode (Fig 4.6), (c) discounted return (Fig 4.7), (d) eval success.
+Training-episode statistics are drawn as lines, evaluation points as markers. Several runs
+(e.g. RL vs RL + compliance strategy) share the axes, labelled from their configs.
+"""
+
+from __future__ import annotations
+
+import csv
+import json
+from pathlib import Path
+
+import numpy as np
+
+PANELS = (
+    ("mean_fz_N", "extraction force |F_z| per episode (N)", "Fig 4.5"),
+    ("mean_fxy_N", "mean |F_xy| per episode (N)", "Fig 4.6"),
+    ("mean_discounted_return", "discounted return", "Fig 4.7"),
+    ("success_rate", "success rate", ""),
+)
+
+
+def run_label(run: Path) -> str:
+    """``RL + CS`` or ``RL`` (compliance strategy on or off), with the env name."""
+    meta = json.loads((run / "run.json").read_text())
+    cfg = meta["config"]
+    cs = bool(cfg.get("env_overrides", {}).get("compliance_strategy", False))
+    return f"{cfg['env']}: {'RL + CS' if cs else 'RL'}"
+
+
+def _column(rows: list[dict[str, str]], key: str) -> tuple[np.ndarray, np.ndarray]:
+    xs, ys = [], []
+    for r in rows:
+        try:
+            y = float(r.get(key, ""))
+        except ValueError:
+            continue
+        if np.isfinite(y):
+            xs.append(float(r["step"]))
+            ys.append(y)
+    return np.array(xs), np.array(ys)
+
+
+def plot_curves(runs: list[Path], out: Path, title: str | None = None) -> Path:
+    """One figure with the four panels for every run in ``runs``; returns ``out``."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fig, axes = plt.subplots(2, 2, figsize=(11, 7.5), sharex=True)
+    for i, run in enumerate(runs):
+        run = Path(run)
+        with (run / "metrics.csv").open() as f:
+            rows = list(csv.DictReader(f))
+        color = f"C{i}"
+        label = run_label(run)
+        for ax, (key, ylabel, fig_ref) in zip(axes.flat, PANELS, strict=True):
+            x, y = _column(rows, f"train/{key}")
+            if len(x):
+                ax.plot(x, y, color=color, lw=1.2, label=f"{label} (training episodes)")
+            x, y = _column(rows, f"eval/{key}")
+            if len(x):
+                ax.plot(x, y, "o--", color=color, ms=4, lw=0.8, label=f"{label} (eval)")
+            ax.set_ylabel(ylabel)
+            if fig_ref:
+                ax.set_title(f"cf. thesis {fig_ref}", fontsize=9, loc="right")
+            ax.grid(alpha=0.3)
+    for ax in axes[1]:
+        ax.set_xlabel("env steps")
+    axes[0, 0].legend(fontsize=7)
+    fig.suptitle(title or "SAC learning curves")
+    fig.tight_layout()
+    out.parent.mkdir(parents=True, exist_ok=True)
+    fig.savefig(out, dpi=110)
+    plt.close(fig)
+    return out

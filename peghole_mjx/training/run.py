@@ -1,0 +1,415 @@
+"""A training run on disk: config, progress, metrics, checkpoints, resume, final outputs.
+
+Layout of ``--out DIR``::
+
+    run.json              env, hyperparameters, network, device, versions, start date
+    metrics.csv           one row per evaluation (env steps, wall clock, eval and training stats)
+    tb/                   TensorBoard event files (same scalars)
+    checkpoints/step_N/   policy.json + params.npz at every evaluation; the newest also
+                          holds state.npz + state.json (the whole carry, for --resume)
+    final_policy/         the policy at the end (what `peghole evaluate DIR` loads)
+    curves.png            Figs 4.5-4.7 style learning curves
+    rollout.gif           one episode of the final policy (mujoco.Renderer, headless)
+    summary.json          final evaluation, wall clock, time to 95 % success
+
+Resume (``--resume DIR``) restores the newest complete checkpoint: actor, critics, target
+critics, temperature, optimiser states, normaliser, replay buffer, every world's state, the
+PRNG key, the env-step counter, the wall clock so far and the evaluation schedule. Rows of
+``metrics.csv`` written after that checkpoint are dropped (their work is redone).
+"""
+
+from __future__ import annotations
+
+import csv
+import json
+import math
+import os
+import shutil
+import sys
+import time
+from pathlib import Path
+from typing import Any
+
+import jax
+import numpy as np
+
+from peghole_mjx.errors import UserInputError
+from peghole_mjx.policies import make_policy_fn, save_policy
+from peghole_mjx.provenance import provenance
+from peghole_mjx.training.config import TrainConfig
+from peghole_mjx.training.sac import EPISODE_KEYS, SACTrainer
+
+METRIC_COLUMNS = (
+    "step",
+    "wall_s",
+    "sps",
+    "eval/episodes",
+    "eval/success_rate",
+    "eval/mean_time_s",
+    "eval/mean_fz_N",
+    "eval/peak_fz_N",
+    "eval/mean_fxy_N",
+    "eval/mean_return",
+    "eval/mean_discounted_return",
+    "eval/nan_worlds",
+    "eval/jammed",
+    "train/episodes",
+    "train/success_rate",
+    "train/mean_time_s",
+    "train/mean_fz_N",
+    "train/peak_fz_N",
+    "train/mean_fxy_N",
+    "train/mean_return",
+    "train/mean_discounted_return",
+    "train/nan_worlds",
+    "loss/critic",
+    "loss/actor",
+    "loss/alpha",
+    "alpha",
+)
+#: eval success that defines "time to success" (issue targets: 95 %)
+SUCCESS_THRESHOLD = 0.95
+
+
+def _atomic_dir(final: Path) -> Path:
+    tmp = final.with_name(final.name + ".tmp")
+    if tmp.exists():
+        shutil.rmtree(tmp)
+    tmp.mkdir(parents=True)
+    return tmp
+
+
+class TrainingRun:
+    """Drive a :class:`SACTrainer` with evaluation, logging and checkpoints."""
+
+    def __init__(
+        self, cfg: TrainConfig, out: str | Path, progress: bool = True, render: bool = True
+    ):
+        from peghole_mjx.envs import load
+
+        self.cfg, self.out, self.progress, self.render = cfg, Path(out), progress, render
+        self.carry = None
+        self.env = load(cfg.env, config_overrides=cfg.env_overrides or None)
+        self.trainer = SACTrainer(self.env, cfg)
+        self.policy_fn = make_policy_fn(self.trainer.network, deterministic=True)
+        self.ckpt_dir = self.out / "checkpoints"
+
+    # ------------------------------------------------------------------ construction
+    @classmethod
+    def resume(
+        cls,
+        out: str | Path,
+        progress: bool = True,
+        render: bool = True,
+        num_timesteps: int | None = None,
+    ) -> TrainingRun:
+        """The run in ``out`` with its own config; ``num_timesteps`` extends or ends it."""
+        out = Path(out)
+        path = out / "run.json"
+        if not path.exists():
+            raise UserInputError(f"--resume: {path} not found (not a training run directory)")
+        meta = json.loads(path.read_text())
+        if num_timesteps is not None:
+            meta["config"]["num_timesteps"] = int(num_timesteps)
+            meta.setdefault("resumed_with", []).append({"num_timesteps": int(num_timesteps)})
+            path.write_text(json.dumps(meta, indent=2) + "\n")
+        return cls(TrainConfig.from_dict(meta["config"]), out, progress, render)
+
+    def latest_checkpoint(self) -> Path | None:
+        """Newest checkpoint with a complete saved state (atomic renames guarantee this)."""
+        if not self.ckpt_dir.is_dir():
+            return None
+        full = [p for p in sorted(self.ckpt_dir.glob("step_*")) if (p / "state.json").exists()]
+        return full[-1] if full else None
+
+    # ------------------------------------------------------------------ state I/O
+    def save_checkpoint(self, carry, step: int, sched: dict[str, Any]) -> Path:
+        final = self.ckpt_dir / f"step_{step:010d}"
+        tmp = _atomic_dir(final)
+        save_policy(tmp, self.trainer.policy_params(carry), self._policy_meta(step))
+        leaves = jax.tree.leaves(jax.device_get(carry))
+        np.savez(tmp / "state.npz", **{f"leaf_{i:05d}": x for i, x in enumerate(leaves)})
+        (tmp / "state.json").write_text(json.dumps({"step": step, **sched}, indent=2) + "\n")
+        if final.exists():
+            shutil.rmtree(final)
+        os.replace(tmp, final)
+        # keep policies of every checkpoint, the (large) state of the newest only
+        for old in self.ckpt_dir.glob("step_*"):
+            if old != final and (old / "state.npz").exists():
+                (old / "state.npz").unlink()
+                (old / "state.json").unlink(missing_ok=True)
+        return final
+
+    def load_checkpoint(self, path: Path):
+        template = self.trainer.init_carry(self.cfg.seed)
+        treedef = jax.tree.structure(template)
+        tleaves = jax.tree.leaves(template)
+        with np.load(path / "state.npz") as z:
+            leaves = [z[f"leaf_{i:05d}"] for i in range(len(z.files))]
+        if len(leaves) != len(tleaves):
+            raise UserInputError(f"{path}: saved state does not match this run's config")
+        bad = [
+            i for i, (t, x) in enumerate(zip(tleaves, leaves, strict=True)) if t.shape != x.shape
+        ]
+        if bad:
+            raise UserInputError(f"{path}: saved state does not match this run's config")
+        placed = [
+            jax.device_put(x.astype(t.dtype), t.sharding)
+            for t, x in zip(tleaves, leaves, strict=True)
+        ]
+        carry = jax.tree.unflatten(treedef, placed)
+        sched = json.loads((path / "state.json").read_text())
+        return carry, sched
+
+    def _policy_meta(self, step: int) -> dict[str, Any]:
+        return {
+            "env": self.cfg.env,
+            "env_overrides": self.cfg.env_overrides,
+            "network": self.trainer.network,
+            "train_config": self.cfg.as_dict(),
+            "env_steps": step,
+            "provenance": provenance(),
+        }
+
+    # ------------------------------------------------------------------ evaluation
+    def evaluate(self, carry, episodes: int, seed: int) -> dict[str, float]:
+        from peghole_mjx.envs.rollout import rollout
+
+        params = self.trainer.policy_params(carry)
+        res = rollout(
+            self.env,
+            self.policy_fn,
+            episodes,
+            seed=seed,
+            progress=False,
+            params=params,
+            gamma=self.cfg.discounting,
+        )
+        return res.summary().as_dict()
+
+    # ------------------------------------------------------------------ logging
+    def _read_rows(self, upto_step: int | None = None) -> list[dict[str, str]]:
+        path = self.out / "metrics.csv"
+        if not path.exists():
+            return []
+        with path.open() as f:
+            rows = list(csv.DictReader(f))
+        if upto_step is not None:
+            rows = [r for r in rows if int(r["step"]) <= upto_step]
+        return rows
+
+    def _write_rows(self, rows: list[dict[str, Any]]) -> None:
+        with (self.out / "metrics.csv").open("w", newline="") as f:
+            w = csv.DictWriter(f, fieldnames=METRIC_COLUMNS)
+            w.writeheader()
+            for r in rows:
+                w.writerow({k: r.get(k, "") for k in METRIC_COLUMNS})
+
+    def _append_row(self, row: dict[str, Any], tb) -> None:
+        path = self.out / "metrics.csv"
+        new = not path.exists()
+        with path.open("a", newline="") as f:
+            w = csv.DictWriter(f, fieldnames=METRIC_COLUMNS)
+            if new:
+                w.writeheader()
+            w.writerow({k: _fmt(row.get(k, "")) for k in METRIC_COLUMNS})
+        if tb is not None:
+            for k, v in row.items():
+                if k != "step" and isinstance(v, int | float) and math.isfinite(v):
+                    tb.add_scalar(k, v, row["step"])
+            tb.flush()
+
+    # ------------------------------------------------------------------ main loop
+    def run(self, resume: bool = False) -> dict[str, Any]:
+        cfg, trainer = self.cfg, self.trainer
+        self.out.mkdir(parents=True, exist_ok=True)
+        ckpt = self.latest_checkpoint() if resume else None
+        if resume and ckpt is None:
+            print(f"no complete checkpoint in {self.ckpt_dir}: starting over", file=sys.stderr)
+        if not resume and (self.out / "run.json").exists():
+            raise UserInputError(
+                f"{self.out} already holds a training run: use --resume {self.out} or a new --out"
+            )
+        if not (self.out / "run.json").exists():
+            meta = {"config": cfg.as_dict(), "network": trainer.network, **provenance()}
+            (self.out / "run.json").write_text(json.dumps(meta, indent=2) + "\n")
+
+        tb = _tensorboard(self.out / "tb")
+        t_start = time.perf_counter()
+        if ckpt is not None:
+            carry, sched = self.load_checkpoint(ckpt)
+            self._write_rows(self._read_rows(upto_step=sched["step"]))
+            step, wall0, n_eval = sched["step"], sched["wall_s"], sched["n_eval"]
+            print(f"resumed from {ckpt} at {step} env steps", file=sys.stderr)
+        else:
+            carry = trainer.init_carry(cfg.seed)
+            step, wall0, n_eval = 0, 0.0, 0
+
+        def wall() -> float:
+            return wall0 + time.perf_counter() - t_start
+
+        per_call = cfg.num_envs * cfg.steps_per_call
+        totals = {k: 0.0 for k in EPISODE_KEYS}
+        losses: dict[str, float] = {}
+        if step == 0:  # the untrained policy, then the replay prefill
+            ev = self.evaluate(carry, cfg.num_eval_envs, seed=cfg.seed + 10_000)
+            self._append_row({"step": 0, "wall_s": wall(), **_prefix("eval/", ev)}, tb)
+            n_eval = 1
+            while step < cfg.min_replay_size:
+                carry, tot = trainer.prefill(carry)
+                step += per_call
+                _accumulate(totals, tot)
+        from tqdm import tqdm
+
+        bar = tqdm(
+            total=cfg.num_timesteps,
+            initial=min(step, cfg.num_timesteps),
+            unit="step",
+            unit_scale=True,
+            desc=f"SAC {cfg.env}",
+            file=sys.stderr,
+            disable=not self.progress,
+            dynamic_ncols=True,
+        )
+        last = self._read_rows()
+        post = {}
+        if last:
+            post = {
+                "success": last[-1]["eval/success_rate"],
+                "return": last[-1]["eval/mean_return"],
+            }
+        t_sps, s_sps = time.perf_counter(), step
+        while step < cfg.num_timesteps:
+            carry, tot, m = trainer.train_call(carry)
+            step += per_call
+            _accumulate(totals, tot)
+            losses = {k: float(np.mean(v)) for k, v in jax.device_get(m).items()}
+            bar.update(per_call)
+            sps = (step - s_sps) / max(time.perf_counter() - t_sps, 1e-9)
+            bar.set_postfix(sps=f"{sps:.0f}", **post, refresh=False)
+            if step >= n_eval * cfg.eval_every or step >= cfg.num_timesteps:
+                ev = self.evaluate(carry, cfg.num_eval_envs, seed=cfg.seed + 10_000 + n_eval)
+                n_eval = max(n_eval + 1, step // cfg.eval_every + 1)
+                row = {
+                    "step": step,
+                    "wall_s": wall(),
+                    "sps": sps,
+                    **_prefix("eval/", ev),
+                    **_train_stats(totals),
+                    **losses,
+                }
+                self._append_row(row, tb)
+                self.save_checkpoint(carry, step, {"wall_s": wall(), "n_eval": n_eval})
+                post = {
+                    "success": f"{ev['success_rate']:.2f}",
+                    "return": f"{ev['mean_return']:.1f}",
+                }
+                bar.set_postfix(sps=f"{sps:.0f}", **post)
+                totals = {k: 0.0 for k in EPISODE_KEYS}
+                t_sps, s_sps = time.perf_counter(), step
+        bar.close()
+        if tb is not None:
+            tb.close()
+        self.carry = carry  # the final carry, for callers that continue in-process
+        return self.finish(carry, step, wall())
+
+    # ------------------------------------------------------------------ outputs
+    def finish(self, carry, step: int, wall_s: float) -> dict[str, Any]:
+        save_policy(
+            self.out / "final_policy", self.trainer.policy_params(carry), self._policy_meta(step)
+        )
+        rows = self._read_rows()
+        t95 = next(
+            (float(r["wall_s"]) for r in rows if _f(r["eval/success_rate"]) >= SUCCESS_THRESHOLD),
+            None,
+        )
+        last = rows[-1] if rows else {}
+        summary = {
+            "env": self.cfg.env,
+            "compliance_strategy": bool(self.env.config.compliance_strategy),
+            "profile": self.cfg.profile,
+            "env_steps": step,
+            "wall_s": round(wall_s, 1),
+            "time_to_95pct_success_s": t95,
+            "untrained_eval_return": _f(rows[0]["eval/mean_return"]) if rows else None,
+            "final_eval": {k[5:]: _f(v) for k, v in last.items() if k.startswith("eval/")},
+            **provenance(),
+        }
+        (self.out / "summary.json").write_text(json.dumps(summary, indent=2) + "\n")
+        try:
+            from peghole_mjx.training.plots import plot_curves
+
+            plot_curves([self.out], self.out / "curves.png")
+        except Exception as exc:  # a plot must never lose a finished run
+            print(f"warning: learning curves not plotted: {exc}", file=sys.stderr)
+        if self.render:
+            try:
+                from peghole_mjx.training.video import render_policy_gif
+
+                render_policy_gif(self.out / "final_policy", self.out / "rollout.gif")
+            except Exception as exc:
+                print(f"warning: rollout GIF not rendered: {exc}", file=sys.stderr)
+        return summary
+
+
+# ---------------------------------------------------------------------- helpers
+def _tensorboard(path: Path):
+    try:
+        from tensorboardX import SummaryWriter
+    except ImportError:  # optional: metrics.csv has the same numbers
+        print("tensorboardX not installed: TensorBoard logs skipped", file=sys.stderr)
+        return None
+    return SummaryWriter(str(path))
+
+
+def _accumulate(totals: dict[str, float], tot) -> None:
+    for k, v in jax.device_get(tot).items():
+        totals[k] += float(np.sum(v))
+
+
+def _train_stats(t: dict[str, float]) -> dict[str, float]:
+    n = t["episodes"]
+    if n == 0:
+        return {"train/episodes": 0}
+    out = {
+        "train/episodes": int(n),
+        "train/success_rate": t["success"] / n,
+        "train/mean_fz_N": t["mean_fz_N"] / n,
+        "train/peak_fz_N": t["peak_fz_N"] / n,
+        "train/mean_fxy_N": t["mean_fxy_N"] / n,
+        "train/mean_return": t["return"] / n,
+        "train/mean_discounted_return": t["discounted_return"] / n,
+        "train/nan_worlds": int(t["nan"]),
+    }
+    if t["success"] > 0:
+        out["train/mean_time_s"] = t["extraction_time_s"] / t["success"]
+    return out
+
+
+def _prefix(p: str, d: dict[str, Any]) -> dict[str, Any]:
+    keys = {
+        "episodes": "episodes",
+        "success_rate": "success_rate",
+        "mean_time_s": "mean_time_s",
+        "mean_fz_N": "mean_fz_N",
+        "peak_fz_N": "peak_fz_N",
+        "mean_fxy_N": "mean_fxy_N",
+        "mean_return": "mean_return",
+        "mean_discounted_return": "mean_discounted_return",
+        "nan_worlds": "nan_worlds",
+        "jammed": "jammed",
+    }
+    return {p + v: d[k] for k, v in keys.items() if k in d}
+
+
+def _fmt(v):
+    if isinstance(v, float):
+        return f"{v:.6g}"
+    return v
+
+
+def _f(v) -> float:
+    try:
+        return float(v)
+    except (TypeError, ValueError):
+        return float("nan")

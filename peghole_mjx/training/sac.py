@@ -1,0 +1,354 @@
+"""Soft actor-critic on the MJX envs, built from Brax's SAC (``brax.training.agents.sac``).
+
+The networks (:func:`brax.training.agents.sac.networks.make_sac_networks`), the three losses
+(:func:`brax.training.agents.sac.losses.make_losses`), the gradient updates, the replay buffer
+(:class:`brax.training.replay_buffers.UniformSamplingQueue`) and the observation normaliser
+are Brax's own. What this module adds around them, and why Brax's ``sac.train`` is not called
+directly:
+
+* **Full resume.** ``sac.train(restore_checkpoint_path=...)`` restores the policy and the
+  normaliser only. Here the whole carry is checkpointed: actor, both critics and their
+  targets, the temperature, all optimiser states, the normaliser, the replay buffer, every
+  world's simulator state and the PRNG key. A resumed run continues bit-for-bit as if it had
+  never stopped (tested).
+* **Full resets.** Brax's AutoResetWrapper restores each world's first start state, so the
+  randomised initial errors would be drawn once. Here a finished world gets a fresh
+  :meth:`PegHoleEnv.reset` with a new key (tested).
+* **Fixed or learned temperature.** Brax always learns alpha (from 1); the thesis fixed it at
+  0.2. ``alpha`` may be ``"auto"`` (learned, from ``alpha_init``) or a number.
+* **Episode statistics during training** (force, |F_xy|, discounted return of every finished
+  training episode) for the thesis's Figs 4.5-4.7.
+
+Like Brax, the step is ``pmap``-ed over all local devices (``num_envs`` split across them;
+gradients and normaliser statistics averaged across them with ``pmean``). On several hosts,
+call ``jax.distributed.initialize()`` first (see docs/training.md).
+
+Time limits. An episode that reaches ``episode_length`` is a failure with reward -1 (the
+thesis's rule) and a terminal transition, so ``truncation`` is always 0.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import flax
+import jax
+import jax.numpy as jnp
+import optax
+from brax.training import gradients, replay_buffers
+from brax.training.acme import running_statistics, specs
+from brax.training.agents.sac import losses as sac_losses
+from brax.training.types import Transition
+
+from peghole_mjx.envs.base import PegHoleEnv
+from peghole_mjx.errors import UserInputError
+from peghole_mjx.policies import make_networks
+from peghole_mjx.training.config import TrainConfig
+
+AXIS = "i"
+
+#: per-episode quantities summed over the episodes that end during a call
+EPISODE_KEYS = (
+    "episodes",
+    "success",
+    "jammed",
+    "nan",
+    "extraction_time_s",
+    "mean_fz_N",
+    "peak_fz_N",
+    "mean_fxy_N",
+    "return",
+    "discounted_return",
+)
+
+
+@flax.struct.dataclass
+class TrainingState:
+    """Learner state (replicated on every device)."""
+
+    policy_params: Any
+    policy_opt: Any
+    q_params: Any
+    q_opt: Any
+    target_q_params: Any
+    log_alpha: jax.Array
+    alpha_opt: Any
+    normalizer: running_statistics.RunningStatisticsState
+    gradient_steps: jax.Array
+
+
+@flax.struct.dataclass
+class Carry:
+    """Everything a run needs to continue (one slice per device along axis 0)."""
+
+    ts: TrainingState
+    env_state: Any  # batched envs.State of this device's worlds
+    ep_acc: dict[str, jax.Array]  # per-world running return, discounted return, gamma^t
+    buffer: Any
+    key: jax.Array
+
+
+def network_description(env: PegHoleEnv, cfg: TrainConfig) -> dict[str, Any]:
+    """What :mod:`peghole_mjx.policies` needs to rebuild the networks."""
+    return {
+        "observation_size": int(env.observation_size),
+        "action_size": int(env.action_size),
+        "hidden_layer_sizes": list(cfg.hidden_layer_sizes),
+        "normalize_observations": bool(cfg.normalize_observations),
+    }
+
+
+class SACTrainer:
+    """Jitted (pmapped) pieces of a SAC run: ``init``, ``prefill``, ``train_call``."""
+
+    def __init__(self, env: PegHoleEnv, cfg: TrainConfig):
+        self.env, self.cfg = env, cfg
+        self.n_dev = jax.local_device_count()
+        if cfg.num_envs % self.n_dev:
+            raise UserInputError(
+                f"num_envs ({cfg.num_envs}) must be divisible by the device count ({self.n_dev})"
+            )
+        self.envs_per_dev = cfg.num_envs // self.n_dev
+        self.network = network_description(env, cfg)
+        self.nets = make_networks(self.network)
+        obs_size, act_size = self.network["observation_size"], self.network["action_size"]
+        self.obs_size, self.act_size = obs_size, act_size
+        self.fixed_alpha = cfg.alpha != "auto"
+        self.policy_opt = optax.adam(cfg.learning_rate)
+        self.q_opt = optax.adam(cfg.learning_rate)
+        self.alpha_opt = optax.adam(3e-4)
+        dummy_obs = jnp.zeros((obs_size,))
+        self.buffer = replay_buffers.UniformSamplingQueue(
+            max_replay_size=cfg.max_replay_size // self.n_dev,
+            dummy_data_sample=Transition(
+                observation=dummy_obs,
+                action=jnp.zeros((act_size,)),
+                reward=0.0,
+                discount=0.0,
+                next_observation=dummy_obs,
+                extras={"state_extras": {"truncation": 0.0}, "policy_extras": {}},
+            ),
+            sample_batch_size=cfg.batch_size * cfg.grad_updates_per_step // self.n_dev,
+        )
+        alpha_loss, critic_loss, actor_loss = sac_losses.make_losses(
+            sac_network=self.nets,
+            reward_scaling=cfg.reward_scaling,
+            discounting=cfg.discounting,
+            action_size=act_size,
+        )
+        self._alpha_update = gradients.gradient_update_fn(alpha_loss, self.alpha_opt, AXIS)
+        self._critic_update = gradients.gradient_update_fn(critic_loss, self.q_opt, AXIS)
+        self._actor_update = gradients.gradient_update_fn(actor_loss, self.policy_opt, AXIS)
+        self._dist = self.nets.parametric_action_distribution
+        self.init = jax.pmap(self._init, axis_name=AXIS)
+        self._train_call_p = jax.pmap(self._train_call, axis_name=AXIS)
+
+    # ------------------------------------------------------------------ init
+    def init_carry(self, seed: int) -> Carry:
+        """A fresh carry: same learner on every device, different worlds per device."""
+        key = jax.random.PRNGKey(seed)
+        learner_key, local_key = jax.random.split(key)
+        local_keys = jax.random.split(local_key, self.n_dev)
+        learner_keys = jnp.stack([learner_key] * self.n_dev)
+        return self.init(learner_keys, local_keys)
+
+    def _init(self, learner_key, local_key) -> Carry:
+        cfg = self.cfg
+        kp, kq = jax.random.split(learner_key)
+        policy_params = self.nets.policy_network.init(kp)
+        q_params = self.nets.q_network.init(kq)
+        alpha0 = cfg.alpha_init if cfg.alpha == "auto" else float(cfg.alpha)
+        log_alpha = jnp.asarray(jnp.log(alpha0), jnp.float32)
+        ts = TrainingState(
+            policy_params=policy_params,
+            policy_opt=self.policy_opt.init(policy_params),
+            q_params=q_params,
+            q_opt=self.q_opt.init(q_params),
+            target_q_params=q_params,
+            log_alpha=log_alpha,
+            alpha_opt=self.alpha_opt.init(log_alpha),
+            normalizer=running_statistics.init_state(
+                specs.Array((self.obs_size,), jnp.dtype("float32"))
+            ),
+            gradient_steps=jnp.zeros((), jnp.int32),
+        )
+        k_env, k_buf, k_run = jax.random.split(local_key, 3)
+        env_state = jax.vmap(self.env.reset)(jax.random.split(k_env, self.envs_per_dev))
+        n = self.envs_per_dev
+        ep_acc = {"return": jnp.zeros(n), "discounted_return": jnp.zeros(n), "gamma_t": jnp.ones(n)}
+        carry = Carry(ts, env_state, ep_acc, self.buffer.init(k_buf), k_run)
+        # no weak types: a carry reloaded from disk then has exactly the same avals (no
+        # recompile on resume)
+        return jax.tree.map(_strong, carry)
+
+    # ------------------------------------------------------------------ acting
+    def _world_step(self, state, action, key):
+        """One env step; a finished world restarts from a fresh randomised reset."""
+        nxt = self.env.step(state, action)
+        fresh = self.env.reset(key)
+        done = nxt.done > 0
+        new = jax.tree.map(lambda f, x: jnp.where(done, f, x), fresh, nxt)
+        return nxt, new
+
+    def _actor_step(self, ts: TrainingState, carry: Carry, key, deterministic=False):
+        """Act in every world, store the transitions, track finished episodes."""
+        k_act, k_reset = jax.random.split(key)
+        es = carry.env_state
+        logits = self.nets.policy_network.apply(ts.normalizer, ts.policy_params, es.obs)
+        if deterministic:
+            actions = self._dist.mode(logits)
+        else:
+            actions = self._dist.sample(logits, k_act)
+        nxt, new_state = jax.vmap(self._world_step)(
+            es, actions, jax.random.split(k_reset, self.envs_per_dev)
+        )
+        trans = Transition(
+            observation=es.obs,
+            action=actions,
+            reward=nxt.reward,
+            discount=1.0 - nxt.done,
+            next_observation=nxt.obs,
+            extras={
+                "state_extras": {"truncation": jnp.zeros_like(nxt.done)},
+                "policy_extras": {},
+            },
+        )
+        acc = carry.ep_acc
+        ret = acc["return"] + nxt.reward
+        dret = acc["discounted_return"] + acc["gamma_t"] * nxt.reward
+        done = nxt.done > 0
+        m = nxt.metrics
+        totals = {
+            "episodes": done.sum(),
+            "success": jnp.where(done, m["success"], 0.0).sum(),
+            "jammed": jnp.where(done, m["jammed"], 0.0).sum(),
+            "nan": jnp.where(done, m["nan"], 0.0).sum(),
+            "extraction_time_s": jnp.where(done, m["extraction_time_s"], 0.0).sum(),
+            "mean_fz_N": jnp.where(done, m["mean_fz_N"], 0.0).sum(),
+            "peak_fz_N": jnp.where(done, m["peak_fz_N"], 0.0).sum(),
+            "mean_fxy_N": jnp.where(done, m["mean_fxy_N"], 0.0).sum(),
+            "return": jnp.where(done, ret, 0.0).sum(),
+            "discounted_return": jnp.where(done, dret, 0.0).sum(),
+        }
+        ep_acc = {
+            "return": jnp.where(done, 0.0, ret),
+            "discounted_return": jnp.where(done, 0.0, dret),
+            "gamma_t": jnp.where(done, 1.0, acc["gamma_t"] * self.cfg.discounting),
+        }
+        normalizer = ts.normalizer
+        if self.cfg.normalize_observations:
+            normalizer = running_statistics.update(normalizer, es.obs, pmap_axis_name=AXIS)
+        ts = ts.replace(normalizer=normalizer)
+        buffer = self.buffer.insert(carry.buffer, trans)
+        carry = carry.replace(env_state=new_state, ep_acc=ep_acc, buffer=buffer)
+        return ts, carry, {k: v.astype(jnp.float32) for k, v in totals.items()}
+
+    # ------------------------------------------------------------------ learning
+    def _sgd_step(self, ts_key, transitions):
+        ts, key = ts_key
+        key, k_alpha, k_critic, k_actor = jax.random.split(key, 4)
+        if self.fixed_alpha:
+            alpha_loss, log_alpha, alpha_opt = jnp.zeros(()), ts.log_alpha, ts.alpha_opt
+        else:
+            alpha_loss, log_alpha, alpha_opt = self._alpha_update(
+                ts.log_alpha,
+                ts.policy_params,
+                ts.normalizer,
+                transitions,
+                k_alpha,
+                optimizer_state=ts.alpha_opt,
+            )
+        alpha = jnp.exp(ts.log_alpha)
+        critic_loss, q_params, q_opt = self._critic_update(
+            ts.q_params,
+            ts.policy_params,
+            ts.normalizer,
+            ts.target_q_params,
+            alpha,
+            transitions,
+            k_critic,
+            optimizer_state=ts.q_opt,
+        )
+        actor_loss, policy_params, policy_opt = self._actor_update(
+            ts.policy_params,
+            ts.normalizer,
+            ts.q_params,
+            alpha,
+            transitions,
+            k_actor,
+            optimizer_state=ts.policy_opt,
+        )
+        tau = self.cfg.tau
+        target = jax.tree.map(lambda t, q: t * (1 - tau) + q * tau, ts.target_q_params, q_params)
+        ts = ts.replace(
+            policy_params=policy_params,
+            policy_opt=policy_opt,
+            q_params=q_params,
+            q_opt=q_opt,
+            target_q_params=target,
+            log_alpha=log_alpha,
+            alpha_opt=alpha_opt,
+            gradient_steps=ts.gradient_steps + 1,
+        )
+        metrics = {
+            "loss/critic": critic_loss,
+            "loss/actor": actor_loss,
+            "loss/alpha": alpha_loss,
+            "alpha": jnp.exp(log_alpha),
+        }
+        return (ts, key), metrics
+
+    def _train_call(self, carry: Carry, learn: jax.Array) -> tuple[Carry, dict, dict]:
+        """``steps_per_call`` x (one batched env step, ``grad_updates_per_step`` SGD steps).
+
+        With ``learn`` False only experience is collected (the replay prefill): one compiled
+        function serves both, which saves a compile of the env step.
+        """
+        g = self.cfg.grad_updates_per_step
+
+        def sgd(ts, buffer, key):
+            buffer, trans = self.buffer.sample(buffer)
+            trans = jax.tree.map(lambda x: x.reshape((g, -1, *x.shape[1:])), trans)
+            (ts, _), m = jax.lax.scan(self._sgd_step, (ts, key), trans)
+            return ts, buffer, jax.tree.map(jnp.mean, m)
+
+        def no_sgd(ts, buffer, key):
+            m = jax.eval_shape(sgd, ts, buffer, key)[2]
+            return ts, buffer, jax.tree.map(lambda x: jnp.zeros(x.shape, x.dtype), m)
+
+        def body(c, _):
+            c, key = _split_carry_key(c)
+            k_act, k_sgd = jax.random.split(key)
+            ts, c, tot = self._actor_step(c.ts, c, k_act)
+            ts, buffer, m = jax.lax.cond(learn, sgd, no_sgd, ts, c.buffer, k_sgd)
+            return c.replace(ts=ts, buffer=buffer), (tot, m)
+
+        carry, (tots, ms) = jax.lax.scan(body, carry, None, length=self.cfg.steps_per_call)
+        return carry, jax.tree.map(jnp.sum, tots), jax.tree.map(jnp.mean, ms)
+
+    def train_call(self, carry: Carry) -> tuple[Carry, dict, dict]:
+        """One call of env steps with learning."""
+        return self._train_call_p(carry, jnp.ones(self.n_dev, bool))
+
+    def prefill(self, carry: Carry) -> tuple[Carry, dict]:
+        """One call of env steps with the current policy, no learning (replay prefill)."""
+        carry, tot, _ = self._train_call_p(carry, jnp.zeros(self.n_dev, bool))
+        return carry, tot
+
+    # ------------------------------------------------------------------ helpers
+    @staticmethod
+    def policy_params(carry: Carry):
+        """(normaliser, policy params) of device 0, on the host."""
+        ts = jax.tree.map(lambda x: x[0], carry.ts)
+        return jax.device_get((ts.normalizer, ts.policy_params))
+
+
+def _split_carry_key(c: Carry):
+    key, sub = jax.random.split(c.key)
+    return c.replace(key=key), sub
+
+
+def _strong(x):
+    """``x`` as an array without JAX's weak type."""
+    x = jnp.asarray(x)
+    return jax.lax.convert_element_type(x, x.dtype)

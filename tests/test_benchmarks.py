@@ -1,0 +1,327 @@
+"""Benchmarks (issue 7): CSV format, roofline arithmetic, the NumPy impedance port, the MuJoCo
+C control step, the PyBullet baseline env (skipped without pybullet), result readers."""
+
+import csv
+import json
+import sys
+from pathlib import Path
+
+import jax.numpy as jnp
+import mujoco
+import numpy as np
+import pytest
+
+ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT / "benchmarks"))
+
+import bench_common  # noqa: E402
+import plot  # noqa: E402
+import readme_tables  # noqa: E402
+import throughput  # noqa: E402
+
+from peghole_mjx import envs  # noqa: E402
+from peghole_mjx.control import ImpedanceController, Target, make_params  # noqa: E402
+from peghole_mjx.envs.base import REWARD_WEIGHTS  # noqa: E402
+from peghole_mjx.geometry.mjcf import TOOL_DOWN_MAT  # noqa: E402
+
+EXPECTED_COLUMNS = [
+    "engine",
+    "device",
+    "scene",
+    "worlds",
+    "physics_steps_per_s",
+    "env_steps_per_s",
+    "compile_s",
+    "peak_mem_mb",
+    "versions",
+    "date",
+]
+
+
+def _row(**kw):
+    row = {
+        "engine": "mujoco-c",
+        "device": "cpu (2 cores, x86_64)",
+        "scene": "rect",
+        "worlds": 1,
+        "physics_steps_per_s": 1000.0,
+        "env_steps_per_s": 100.0,
+        "compile_s": "",
+        "peak_mem_mb": 300.0,
+        "versions": bench_common.versions_str(),
+        "date": "2026-11-22T00:00:00Z",
+    }
+    row.update(kw)
+    return row
+
+
+# ----------------------------------------------------------------------------- CSV
+def test_csv_writer_has_exactly_the_issue_columns(tmp_path):
+    path = bench_common.write_csv(tmp_path / "t.csv", [_row(), _row(engine="pybullet")])
+    with path.open() as f:
+        header = next(csv.reader(f))
+    assert header == EXPECTED_COLUMNS
+    rows = bench_common.read_csv(path)
+    assert [r["engine"] for r in rows] == ["mujoco-c", "pybullet"]
+    assert rows[0]["compile_s"] is None and rows[0]["worlds"] == 1
+    with pytest.raises(ValueError, match="misses"):
+        bench_common.write_csv(tmp_path / "bad.csv", [{"engine": "x"}])
+    with pytest.raises(ValueError):
+        bench_common.write_csv(tmp_path / "bad.csv", [_row(extra=1)])
+    assert "," not in bench_common.versions_str()  # one CSV field
+
+
+def test_max_rss_sees_this_process_allocating():
+    before = bench_common.max_rss_mb()
+    block = np.ones(40 * 2**20 // 8)  # 40 MiB, touched
+    assert bench_common.max_rss_mb() >= before + 30 or before > 30_000
+    del block
+
+
+def test_committed_throughput_csvs_are_well_formed():
+    csvs = sorted((ROOT / "benchmarks" / "results").glob("throughput_*.csv"))
+    for path in csvs:
+        with path.open() as f:
+            assert next(csv.reader(f)) == EXPECTED_COLUMNS, path
+        for r in bench_common.read_csv(path):
+            assert r["engine"] in bench_common.ENGINES and r["scene"] in ("rect", "dual")
+            assert r["physics_steps_per_s"] == pytest.approx(
+                10 * r["env_steps_per_s"], rel=1e-3, abs=1.0
+            )
+
+
+def test_quick_plan_covers_the_acceptance_engines():
+    args = type(
+        "A",
+        (),
+        {
+            "quick": True,
+            "engines": list(bench_common.ENGINES),
+            "scenes": ["rect", "dual"],
+            "worlds": None,
+            "chunk": None,
+            "min_time": 1.0,
+        },
+    )()
+    jobs = throughput.plan(args, gpu=None)
+    engines = {j["engine"] for j in jobs}
+    assert {"mjx-jax", "mujoco-c", "mujoco-c-rollout"} <= engines
+    assert "mjx-warp" not in engines  # no GPU: skipped with a message
+    assert not any(j["engine"] == "pybullet" and j["scene"] == "dual" for j in jobs)
+    assert not any(j["engine"] == "mjx-jax" and j["scene"] == "dual" for j in jobs)
+    assert throughput.device_label(None) == bench_common.cpu_label()
+    assert throughput.device_label("NVIDIA H100 80GB HBM3") == "gpu-h100"
+    assert throughput.device_label("NVIDIA H200") == "gpu-h200"
+
+
+# ----------------------------------------------------------------------------- roofline
+def test_roofline_arithmetic():
+    est = throughput.roofline_estimate(10_000, 3.35e12, n_substeps=10)
+    assert est["bytes_per_physics_step"] == 20_000
+    assert est["max_physics_steps_per_s"] == pytest.approx(1.675e8)
+    assert est["max_env_steps_per_s"] == pytest.approx(1.675e7)
+    assert "2 x 10000 B" in est["arithmetic"]
+    frac = throughput.roofline_fraction(1.675e7, 10_000, 3.35e12)
+    assert frac == pytest.approx(0.1)
+    assert throughput.GPU_BANDWIDTH["H200 (HBM3e)"] / throughput.GPU_BANDWIDTH[
+        "H100 SXM (HBM3)"
+    ] == pytest.approx(4.8 / 3.35)
+
+
+def test_committed_roofline_matches_the_arithmetic():
+    path = ROOT / "benchmarks" / "results" / "roofline.json"
+    if not path.exists():
+        pytest.skip("no roofline.json committed")
+    r = json.loads(path.read_text())
+    for e in r["scenes"].values():
+        for gpu, est in e["roofline"].items():
+            bw = throughput.GPU_BANDWIDTH[gpu]
+            assert est["max_physics_steps_per_s"] == pytest.approx(
+                bw / (2 * e["mjx_data_bytes_per_world"])
+            )
+
+
+def test_tree_bytes_counts_leaves():
+    tree = {"a": np.zeros((3, 4), np.float32), "b": [np.zeros(5, np.int32)]}
+    assert throughput.tree_bytes(tree) == 3 * 4 * 4 + 5 * 4
+
+
+# ----------------------------------------------------------------------------- the law
+@pytest.fixture(scope="module")
+def rect_env():
+    return envs.load("RectExtract")
+
+
+def test_numpy_impedance_port_matches_the_jax_law(rect_env):
+    """Same torques from MuJoCo C + NumPy as from MJX + JAX, on one perturbed state."""
+    from peghole_mjx._mjx import mjx
+
+    m = rect_env.mj_model
+    d = mujoco.MjData(m)
+    mujoco.mj_resetDataKeyframe(m, d, m.key("inserted").id)
+    rng = np.random.default_rng(0)
+    d.qvel[:] = 0.05 * rng.standard_normal(m.nv)
+    mujoco.mj_forward(m, d)
+    cw = throughput.CWorlds(rect_env, 1)
+    ctl = ImpedanceController.from_model(m)
+    for scale, L_C in ((1.0, 0.0), (50.0, 0.05)):  # inside the limits, then clipped
+        tip = d.xpos[ctl.body_id] + d.xmat[ctl.body_id].reshape(3, 3) @ ctl.tip_local
+        tilt = bench_common.rot_from_rotvec(np.array([0.004, -0.003, 0.002]) * scale)
+        t_mat = tilt @ TOOL_DOWN_MAT
+        t_pos = tip + np.array([0.8e-3, -0.5e-3, 2e-3]) * scale - L_C * t_mat[:, 2]
+        t_vel = np.array([0.0, 0.0, 0.02])
+        ff = np.array([1.0, -2.0, 3.0, 0.1, 0.0, -0.1])
+        cw.L_C = L_C
+        tau_np = cw.law(d, t_pos, t_mat, t_vel, ff)
+        params = make_params(
+            L_C, cw.q_null, stiffness=cw.stiff, damping_ratio=cw.zeta, wrench_ff=ff
+        )
+        out = ctl(
+            mjx.put_model(m),
+            mjx.put_data(m, d),
+            Target(jnp.asarray(t_pos), jnp.asarray(t_mat), jnp.asarray(t_vel)),
+            params,
+        )
+        np.testing.assert_allclose(tau_np, np.asarray(out.tau), rtol=2e-3, atol=2e-3)
+    assert np.any(np.abs(np.asarray(out.wrench_raw)) > np.abs(np.asarray(out.wrench)) + 1e-6)
+
+
+def test_rotvec_roundtrip():
+    v = np.array([0.3, -0.2, 0.1])
+    np.testing.assert_allclose(
+        bench_common.rotvec_from_mat(bench_common.rot_from_rotvec(v)), v, atol=1e-12
+    )
+    np.testing.assert_allclose(bench_common.rotvec_from_mat(np.eye(3)), 0.0)
+
+
+def test_mujoco_c_control_step_extracts_like_the_mjx_env(rect_env):
+    """The scripted pull in MuJoCo C + NumPy takes as long as in MJX (committed rollouts)."""
+    committed = json.loads((ROOT / "benchmarks" / "results" / "env_rollouts.json").read_text())
+    mjx_time = next(
+        r["mean_time_s"]
+        for r in committed["rows"]
+        if r["env"] == "RectExtract" and r["policy"] == "scripted"
+    )
+    cw = throughput.CWorlds(rect_env, 1, seed=5)
+    a = throughput.scripted_action(rect_env)
+    steps = 0
+    while not cw.step(0, a):
+        steps += 1
+        assert steps < rect_env.config.episode_length
+    assert cw.last_outcome == "success"
+    assert (steps + 1) * rect_env.dt == pytest.approx(mjx_time, abs=0.2)
+
+
+# ----------------------------------------------------------------------------- PyBullet
+@pytest.fixture(scope="module")
+def pb_env():
+    pytest.importorskip("pybullet")
+    pytest.importorskip("gymnasium")
+    import pybullet_peghole
+
+    env = pybullet_peghole.make_gym_env(seed=0)
+    yield env
+    env.close()
+
+
+def test_pybullet_env_spaces_and_start(pb_env):
+    assert pb_env.observation_space.shape == (9,)
+    assert pb_env.action_space.shape == (6,)
+    assert np.all(pb_env.action_space.low == -1) and np.all(pb_env.action_space.high == 1)
+    obs, _ = pb_env.reset(seed=1)
+    assert obs.shape == (9,) and obs.dtype == np.float32
+    # the peg starts in the hole: flange on the hole axis, inserted, sensor zeroed, upright
+    assert np.all(np.abs(obs[:2]) < 0.01) and abs(obs[2]) < 1e-3
+    np.testing.assert_allclose(obs[3:6], 0.0, atol=1e-6)
+    assert np.all(np.abs(obs[6:]) < 0.05)
+    assert pb_env.sim.info["depth_mm"] == pytest.approx(149.5, abs=0.01)
+
+
+def test_pybullet_reward_wiring(pb_env):
+    """Reward = the project's reward_terms with Table 4.1 weights; progress = -w_d dz."""
+    sim = pb_env.sim
+    assert sim.rc.w_d == REWARD_WEIGHTS["w_d"] and sim.rc.w_stf == REWARD_WEIGHTS["w_stf"]
+    pb_env.reset(seed=2)
+    a = np.zeros(6, np.float32)
+    a[2] = 0.2  # 20 mm/s out
+    depth = sim.info["depth_mm"]
+    for _ in range(10):
+        obs, r, term, trunc, info = pb_env.step(a)
+        assert not (term or trunc)
+        dz = info["depth_mm"] - depth
+        depth = info["depth_mm"]
+        assert info["reward/progress"] == pytest.approx(-REWARD_WEIGHTS["w_d"] * dz)
+        assert info["reward/force"] == pytest.approx(-REWARD_WEIGHTS["w_f"] * info["fxy_N"] / 20)
+        assert info["reward/stiffness"] == pytest.approx(
+            -REWARD_WEIGHTS["w_stf"] * np.sqrt(2) * 300.0 / 1000.0
+        )
+        assert info["reward/end"] == 0.0
+        assert r == pytest.approx(sum(v for k, v in info.items() if k.startswith("reward/")))
+    assert obs[5] > 0  # pulling against friction: +F_z, the MJX env's sign
+    for _ in range(90):  # past the start transient (the z spring builds up the pull force)
+        pb_env.step(a)
+    d100 = sim.info["depth_mm"]
+    for _ in range(50):
+        pb_env.step(a)
+    assert d100 - sim.info["depth_mm"] == pytest.approx(50 * 0.4, abs=2.0)  # 20 mm/s
+
+
+def test_pybullet_pushing_the_peg_reads_as_minus_the_contact_force(pb_env):
+    """The F/T sign convention of the MJX env: the reading is minus the load on the peg."""
+    sim = pb_env.sim
+    pb_env.reset(seed=3)
+    p, kw = sim.p, {"physicsClientId": sim.cid}
+    f = np.zeros(3)
+    for _ in range(150):  # 0.3 s: the impedance settles against a steady 6 N lift
+        tau = sim._torque(sim.info["cmd_tip"], sim.info["cmd_mat"], np.zeros(3), np.zeros(3))
+        p.setJointMotorControlArray(
+            sim.robot, list(range(7)), p.TORQUE_CONTROL, forces=tau.tolist(), **kw
+        )
+        p.applyExternalForce(sim.robot, 8, [0.0, 0.0, 6.0], sim.tip().tolist(), p.WORLD_FRAME, **kw)
+        p.stepSimulation(**kw)
+        f = sim.contact_force()
+    assert f[2] == pytest.approx(-6.0, abs=1.0)
+
+
+# ----------------------------------------------------------------------------- readers
+def test_time_to_success_reader(tmp_path):
+    assert plot.time_to_success(tmp_path / "missing.json") is None
+    p = tmp_path / "r.json"
+    p.write_text(
+        json.dumps({"time_to_success_s": None, "budget_s": 600, "final_success_rate": 0.1})
+    )
+    r = plot.time_to_success(p)
+    assert r["reached"] is False and r["time_s"] == 600
+    p.write_text(json.dumps({"time_to_95_s": 42.0, "budget_s": 600}))
+    r = plot.time_to_success(p)
+    assert r["reached"] is True and r["time_s"] == 42.0
+
+
+def test_throughput_table_traces_to_the_csv(tmp_path):
+    bench_common.write_csv(
+        tmp_path / "throughput_cpu-9core.csv",
+        [
+            _row(engine="mjx-jax", physics_steps_per_s=5000.0, env_steps_per_s=500.0),
+            _row(engine="mujoco-c-rollout", physics_steps_per_s=2500.0, env_steps_per_s=250.0),
+            _row(engine="pybullet", physics_steps_per_s=1000.0, env_steps_per_s=100.0),
+        ],
+    )
+    table = readme_tables.throughput(tmp_path)
+    assert "| mjx-jax | rect | 1 | 5000.0 | 500.0 |" in table
+    assert "--engines pybullet --scenes rect --worlds 1" in table
+    assert "mjx-jax / mujoco-c-rollout = 2" in table
+    assert "mjx-jax / one PyBullet process = 5" in table
+    (tmp_path / "throughput_cpu-9core_quick.csv").write_text("not read")
+    assert readme_tables.throughput_csvs(tmp_path) == [tmp_path / "throughput_cpu-9core.csv"]
+
+
+def test_plots_write_pngs(tmp_path):
+    pytest.importorskip("matplotlib")
+    csv_path = bench_common.write_csv(
+        tmp_path / "throughput_cpu-9core.csv",
+        [_row(worlds=w, physics_steps_per_s=100.0 * w) for w in (1, 4, 16)],
+    )
+    outs = plot.plot_throughput(csv_path, tmp_path)
+    assert [o.name for o in outs] == ["throughput_cpu-9core_rect.png"]
+    out = plot.plot_time_to_success(tmp_path, results=tmp_path)
+    assert out.exists() and outs[0].stat().st_size > 1000
