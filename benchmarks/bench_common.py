@@ -78,6 +78,16 @@ def cpu_label() -> str:
     return f"cpu-{os.cpu_count()}core"
 
 
+def device_label(kind: str | None) -> str:
+    """File label: ``cpu-2core`` or e.g. ``gpu-h100`` (one results file per device)."""
+    if kind is None:
+        return cpu_label()
+    for short in ("h200", "h100", "a100", "l40s", "l4", "a10g", "v100", "t4"):
+        if short in kind.lower().replace(" ", ""):
+            return f"gpu-{short}"
+    return "gpu-" + "".join(ch for ch in kind.lower() if ch.isalnum())[:16]
+
+
 def cpu_device() -> str:
     """``cpu (2 cores, x86_64)``, as :func:`peghole_mjx.provenance.device` names a CPU."""
     return f"cpu ({os.cpu_count()} cores, {platform.machine()})"

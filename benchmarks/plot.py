@@ -4,7 +4,8 @@
   (one figure per scene and device CSV);
 * ``time_to_success.png``: wall clock to the success threshold (or the budget, hatched, when
   it was not reached) of the seed stack (``seed_stack_*.json``) next to ours
-  (``train_rect_cpu.json`` from ``peghole_mjx/training``, "pending" until it is committed).
+  (``train_rect_<device>.json`` from ``benchmarks/time_to_success.py``, "pending" until one
+  is committed).
 
 Run: ``python benchmarks/plot.py`` (reads every ``throughput_*.csv`` in the results folder, the
 ``_quick`` ones excepted unless ``--include-quick``).
@@ -24,7 +25,8 @@ if str(HERE) not in sys.path:
 from bench_common import ENGINES, RESULTS, read_csv  # noqa: E402
 
 #: where "ours" (the Brax SAC stack, peghole_mjx/training) commits its time-to-success result
-OURS_JSON = RESULTS / "train_rect_cpu.json"
+#: ours (benchmarks/time_to_success.py), one file per device like the seed stack's
+OURS_GLOB = "train_rect_*.json"
 #: keys read from a time-to-success JSON, first found wins (seed stack and ours share them)
 TIME_KEYS = ("time_to_success_s", "time_to_95_s", "wall_clock_to_threshold_s")
 
@@ -105,8 +107,11 @@ def plot_time_to_success(out_dir: Path, results: Path = RESULTS) -> Path:
         r = time_to_success(p)
         if r:
             bars.append((f"seed stack\n(PyBullet + SB3)\n{p.stem.split('_', 2)[-1]}", r))
-    ours = time_to_success(OURS_JSON)
-    bars.append(("ours\n(MJX + Brax SAC)", ours))
+    ours = sorted(results.glob(OURS_GLOB))
+    for p in ours:
+        bars.append((f"ours\n(MJX + Brax SAC)\n{p.stem.split('_', 2)[-1]}", time_to_success(p)))
+    if not ours:
+        bars.append(("ours\n(MJX + Brax SAC)", None))
     fig, ax = plt.subplots(figsize=(6.4, 4.4))
     for i, (label, r) in enumerate(bars):
         if r is None:

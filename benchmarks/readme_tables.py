@@ -172,7 +172,7 @@ def roofline() -> str:
 
 # the hook for "ours" (the Brax SAC stack, peghole_mjx/training): where its time-to-success
 # JSON is committed and which keys are read, shared with the plot
-from plot import OURS_JSON  # noqa: E402
+from plot import OURS_GLOB  # noqa: E402
 from plot import TIME_KEYS as _TIME_KEYS  # noqa: E402
 
 
@@ -202,8 +202,63 @@ def time_to_success() -> str:
     ]
     for p in sorted(RESULTS.glob("seed_stack_*.json")):
         lines.append(_tts_row(f"seed stack: PyBullet + SB3 SAC (`{p.name}`)", p))
-    lines.append(_tts_row(f"ours: MJX + Brax SAC (`{OURS_JSON.name}`)", OURS_JSON))
+    ours = sorted(RESULTS.glob(OURS_GLOB))
+    for p in ours:
+        lines.append(_tts_row(f"ours: MJX + Brax SAC (`{p.name}`)", p))
+    if not ours:
+        lines.append(_tts_row("ours: MJX + Brax SAC", RESULTS / "pending.json"))
     return "\n".join(lines)
+
+
+POLICIES = ROOT / "peghole_mjx" / "policies"
+
+
+def _eval_row(label: str, r: dict, thesis: str) -> str:
+    return (
+        f"| {label} | {r['success_rate']:.3f} | {_num(r['mean_time_s'], '.2f')} | "
+        f"{r['mean_fz_N']:.2f} | {r['peak_fz_N']:.2f} | {r['mean_fxy_N']:.2f} | {thesis} |"
+    )
+
+
+def pretrained() -> str:
+    """The committed pretrained policies' evaluations (``evaluation.json`` beside each)."""
+    lines = []
+    for name, sub in (("rect", "rect_extract"), ("dual", "dual_extract")):
+        path = POLICIES / sub / "evaluation.json"
+        if not path.exists():
+            lines += [f"`{name}`: pending (no committed policy yet).", ""]
+            continue
+        ev = json.loads(path.read_text())
+        pol = json.loads((POLICIES / sub / "policy.json").read_text())
+        th = ev["thesis"]
+        prov = pol.get("provenance", {})
+        lines += [
+            f"`{name}` ({ev['env']}, {ev['preset']}, compliance strategy "
+            f"{'on' if ev['compliance_strategy'] else 'off'}; trained for {pol['env_steps']} "
+            f"env steps on {prov.get('device', '?')}; evaluated on {ev['episodes']} randomised "
+            f"episodes, seed {ev['seed']}, from "
+            f"[`{path.relative_to(ROOT)}`]({path.relative_to(ROOT)}); "
+            f"`peghole evaluate {name} --episodes {ev['episodes']} --json` reproduces it):",
+            "",
+            "| policy | success | mean time s | mean F_z N | peak F_z N | mean F_xy N | thesis |",
+            "|---|---|---|---|---|---|---|",
+            _eval_row(
+                "SAC (ours)",
+                ev["policy"],
+                f"R4: {th['success_rate']} success, {th['mean_time_s']} s; "
+                f"R5: peak F_z <= {th['peak_fz_N_policy']} N",
+            ),
+            _eval_row(
+                "scripted baseline (Ch 2-3 method)",
+                ev["baseline"],
+                f"R5: peak F_z > {th['peak_fz_N_baseline']} N",
+            ),
+            "",
+            f"Mean extraction force vs the baseline: **{ev['force_reduction_pct']:+.1f} %** "
+            f"reduction (thesis R3: {th['force_reduction_pct']} %).",
+            "",
+        ]
+    return "\n".join(lines).rstrip()
 
 
 TABLES = {
@@ -212,6 +267,7 @@ TABLES = {
     "throughput": throughput,
     "roofline": roofline,
     "time_to_success": time_to_success,
+    "pretrained": pretrained,
 }
 
 

@@ -77,7 +77,7 @@ from bench_common import (  # noqa: E402
     RESULTS,
     SCENES,
     cpu_device,
-    cpu_label,
+    device_label,
     impedance_torque,
     load_average,
     max_rss_mb,
@@ -123,16 +123,6 @@ def gpu_kind() -> str | None:
         return None if dev.platform == "cpu" else str(getattr(dev, "device_kind", dev.platform))
     except Exception:
         return None
-
-
-def device_label(kind: str | None) -> str:
-    """File label: ``cpu-2core`` or e.g. ``gpu-h100`` (one results file per device)."""
-    if kind is None:
-        return cpu_label()
-    for short in ("h200", "h100", "a100", "l40s", "l4", "a10g", "v100", "t4"):
-        if short in kind.lower().replace(" ", ""):
-            return f"gpu-{short}"
-    return "gpu-" + "".join(ch for ch in kind.lower() if ch.isalnum())[:16]
 
 
 def jax_device_str() -> str:

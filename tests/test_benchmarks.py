@@ -109,9 +109,9 @@ def test_quick_plan_covers_the_acceptance_engines():
     assert "mjx-warp" not in engines  # no GPU: skipped with a message
     assert not any(j["engine"] == "pybullet" and j["scene"] == "dual" for j in jobs)
     assert not any(j["engine"] == "mjx-jax" and j["scene"] == "dual" for j in jobs)
-    assert throughput.device_label(None) == bench_common.cpu_label()
-    assert throughput.device_label("NVIDIA H100 80GB HBM3") == "gpu-h100"
-    assert throughput.device_label("NVIDIA H200") == "gpu-h200"
+    assert bench_common.device_label(None) == bench_common.cpu_label()
+    assert bench_common.device_label("NVIDIA H100 80GB HBM3") == "gpu-h100"
+    assert bench_common.device_label("NVIDIA H200") == "gpu-h200"
 
 
 # ----------------------------------------------------------------------------- roofline

@@ -45,6 +45,16 @@ THESIS = {
 LC_MM = {"rect": (0.0, 75.0, 150.0), "dual": (0.0, 25.0, 50.0)}
 
 
+#: The experiment's physics step as a fraction of the project's (``SimOptions().timestep``).
+#: The rect presets' radial clearances are 25-300 um. At the default 2 ms step (contact time
+#: constant 4 ms), the peg's contacts in rect-2 / rect-3 penetrate 12-30 um while pulling, over
+#: the 25 % of the radial clearance the experiment allows (6.25 um for rect-3), whatever the
+#: solimp impedance (0.99-0.997 change nothing; 0.999 goes NaN in float32). Measured on rect-3,
+#: 6 worlds: 2 ms 11-14 um, 1 ms 8-9 um, 0.5 ms 4.6-5.1 um. So the rect experiment runs at a
+#: quarter of the default step; the dual presets (at most 12 um of 50-400 um) keep it.
+TIMESTEP_DIVISOR = {"rect": 4, "dual": 1}
+
+
 @dataclass(frozen=True)
 class ExperimentConfig:
     """Parameters of the simulated extraction experiment (SI unless the name says mm/deg)."""
@@ -63,11 +73,23 @@ class ExperimentConfig:
     speed_m_s: float = 0.02
     settle_s: float = 0.3
     clear_mm: float = 5.0  # pull until the tip is this far above the mouth
-    record_every: int = 10
-    chunk_steps: int = 250
+    #: F/T sample period, s: each logged sample is the mean over its physics steps
+    record_every_s: float = 0.02
+    #: physics steps per jitted call (a multiple of the steps per sample)
+    chunk_steps: int = 400
     batch: str = "vmap"
     #: simulator options of the scene (None: ``SimOptions()``, the project default)
     sim: SimOptions | None = None
+
+    def sim_options(self) -> SimOptions:
+        """The simulator options in effect: ``sim``, else the project's default with the
+        geometry's finer step (:data:`TIMESTEP_DIVISOR`)."""
+        if self.sim is not None:
+            return self.sim
+        base = SimOptions()
+        return dataclasses.replace(
+            base, timestep=base.timestep / TIMESTEP_DIVISOR.get(self.geometry, 1)
+        )
 
     def preset_names(self) -> tuple[str, ...]:
         if self.presets:
@@ -102,7 +124,7 @@ class Extraction:
     def __init__(self, preset: str, cfg: ExperimentConfig):
         self.preset, self.cfg = preset, cfg
         self.spec = PRESETS[preset]
-        m = compile_scene(self.spec, sim=cfg.sim)
+        m = compile_scene(self.spec, sim=cfg.sim_options())
         self.m = m
         self.ctl = ImpedanceController(m)
         d = mujoco.MjData(m)
@@ -127,8 +149,16 @@ class Extraction:
         pull = depth + cfg.clear_mm * MM
         self.n_settle = round(cfg.settle_s / self.dt)
         n = self.n_settle + math.ceil(pull / (cfg.speed_m_s * self.dt))
-        if cfg.chunk_steps % cfg.record_every:
-            raise ValueError("chunk_steps must be a multiple of record_every")
+        self.record_every = round(cfg.record_every_s / self.dt)
+        if self.record_every < 1 or abs(self.record_every * self.dt - cfg.record_every_s) > 1e-9:
+            raise ValueError(
+                f"record_every_s ({cfg.record_every_s}) must be a multiple of the step ({self.dt})"
+            )
+        if cfg.chunk_steps % self.record_every:
+            raise ValueError(
+                f"chunk_steps ({cfg.chunk_steps}) must be a multiple of the steps per sample "
+                f"({self.record_every})"
+            )
         self.n_chunks = math.ceil(n / cfg.chunk_steps)
         self.n_steps = self.n_chunks * cfg.chunk_steps
         self._chunk = jax.jit(self._chunk_fn)
@@ -205,7 +235,7 @@ class Extraction:
     def _world_chunk(self, carry, t0):
         ts = t0 + jnp.arange(self.cfg.chunk_steps)
         carry, rec = jax.lax.scan(self._step, carry, ts)
-        k = self.cfg.record_every
+        k = self.record_every
         rec = rec.reshape(-1, k, rec.shape[-1])
         # each sample: the mean over its k steps (a sensor's anti-alias average); contact
         # flag and wrench ratio: the max
@@ -257,7 +287,7 @@ class Extraction:
             penetration_at_time_s=stats[:, 3],
             nan=stats[:, 1] > 0,
         )
-        out["time_s"] = (np.arange(rec.shape[1]) + 1) * self.cfg.record_every * self.dt
+        out["time_s"] = (np.arange(rec.shape[1]) + 1) * self.record_every * self.dt
         out["h0_mm"] = (self.mouth_z - self.tip_z0) / MM
         return out
 
@@ -387,7 +417,7 @@ def analytic_two_point_hook(
 def config_dict(cfg: ExperimentConfig) -> dict:
     """The config as JSON-ready data; ``sim``: the effective simulator options."""
     out = {k: (list(v) if isinstance(v, tuple) else v) for k, v in dataclasses.asdict(cfg).items()}
-    sim = cfg.sim or SimOptions()
+    sim = cfg.sim_options()
     out["sim"] = {
         k: (list(v) if isinstance(v, tuple) else v) for k, v in dataclasses.asdict(sim).items()
     }

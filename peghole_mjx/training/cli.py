@@ -51,6 +51,13 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     )
     t.add_argument("--no-progress", action="store_true", help="no progress bar")
     t.add_argument("--no-video", action="store_true", help="skip the final rollout GIF")
+    t.add_argument(
+        "--stop-at-success",
+        type=float,
+        metavar="RATE",
+        help="end the run at the first evaluation with at least this success rate "
+        "(benchmarks/time_to_success.py uses 0.95)",
+    )
     t.set_defaults(func=cmd_train)
 
     e = sub.add_parser(
@@ -96,6 +103,7 @@ def cmd_train(args: argparse.Namespace) -> int:
             render=not args.no_video,
             num_timesteps=over.get("num_timesteps"),
         )
+        run.stop_at_success = args.stop_at_success
         summary = run.run(resume=True)
     else:
         if not args.env or not args.out:
@@ -106,7 +114,13 @@ def cmd_train(args: argparse.Namespace) -> int:
             overrides=dict(args.overrides),
             compliance_strategy=args.compliance_strategy == "on",
         )
-        run = TrainingRun(cfg, args.out, progress=progress, render=not args.no_video)
+        run = TrainingRun(
+            cfg,
+            args.out,
+            progress=progress,
+            render=not args.no_video,
+            stop_at_success=args.stop_at_success,
+        )
         summary = run.run(resume=False)
     fe = summary["final_eval"]
     print(

@@ -42,6 +42,7 @@ from peghole_mjx.training.sac import EPISODE_KEYS, SACTrainer
 METRIC_COLUMNS = (
     "step",
     "wall_s",
+    "train_wall_s",
     "sps",
     "eval/episodes",
     "eval/success_rate",
@@ -83,11 +84,18 @@ class TrainingRun:
     """Drive a :class:`SACTrainer` with evaluation, logging and checkpoints."""
 
     def __init__(
-        self, cfg: TrainConfig, out: str | Path, progress: bool = True, render: bool = True
+        self,
+        cfg: TrainConfig,
+        out: str | Path,
+        progress: bool = True,
+        render: bool = True,
+        stop_at_success: float | None = None,
     ):
         from peghole_mjx.envs import load
 
         self.cfg, self.out, self.progress, self.render = cfg, Path(out), progress, render
+        #: end the run at the first evaluation whose success rate reaches this (benchmarks)
+        self.stop_at_success = stop_at_success
         self.carry = None
         self.env = load(cfg.env, config_overrides=cfg.env_overrides or None)
         self.trainer = SACTrainer(self.env, cfg)
@@ -240,20 +248,32 @@ class TrainingRun:
             carry, sched = self.load_checkpoint(ckpt)
             self._write_rows(self._read_rows(upto_step=sched["step"]))
             step, wall0, n_eval = sched["step"], sched["wall_s"], sched["n_eval"]
+            eval_s = sched.get("eval_s", 0.0)
             print(f"resumed from {ckpt} at {step} env steps", file=sys.stderr)
         else:
             carry = trainer.init_carry(cfg.seed)
             step, wall0, n_eval = 0, 0.0, 0
+            eval_s = 0.0  # wall clock spent in evaluations (excluded from train_wall_s)
 
         def wall() -> float:
             return wall0 + time.perf_counter() - t_start
+
+        def timed_eval(seed: int) -> dict[str, float]:
+            nonlocal eval_s
+            t0 = time.perf_counter()
+            ev = self.evaluate(carry, cfg.num_eval_envs, seed=seed)
+            eval_s += time.perf_counter() - t0
+            return ev
+
+        def clocks() -> dict[str, float]:
+            return {"wall_s": wall(), "train_wall_s": wall() - eval_s}
 
         per_call = cfg.num_envs * cfg.steps_per_call
         totals = {k: 0.0 for k in EPISODE_KEYS}
         losses: dict[str, float] = {}
         if step == 0:  # the untrained policy, then the replay prefill
-            ev = self.evaluate(carry, cfg.num_eval_envs, seed=cfg.seed + 10_000)
-            self._append_row({"step": 0, "wall_s": wall(), **_prefix("eval/", ev)}, tb)
+            ev = timed_eval(cfg.seed + 10_000)
+            self._append_row({"step": 0, **clocks(), **_prefix("eval/", ev)}, tb)
             n_eval = 1
             while step < cfg.min_replay_size:
                 carry, tot = trainer.prefill(carry)
@@ -288,18 +308,20 @@ class TrainingRun:
             sps = (step - s_sps) / max(time.perf_counter() - t_sps, 1e-9)
             bar.set_postfix(sps=f"{sps:.0f}", **post, refresh=False)
             if step >= n_eval * cfg.eval_every or step >= cfg.num_timesteps:
-                ev = self.evaluate(carry, cfg.num_eval_envs, seed=cfg.seed + 10_000 + n_eval)
+                ev = timed_eval(cfg.seed + 10_000 + n_eval)
                 n_eval = max(n_eval + 1, step // cfg.eval_every + 1)
                 row = {
                     "step": step,
-                    "wall_s": wall(),
+                    **clocks(),
                     "sps": sps,
                     **_prefix("eval/", ev),
                     **_train_stats(totals),
                     **losses,
                 }
                 self._append_row(row, tb)
-                self.save_checkpoint(carry, step, {"wall_s": wall(), "n_eval": n_eval})
+                self.save_checkpoint(
+                    carry, step, {"wall_s": wall(), "eval_s": eval_s, "n_eval": n_eval}
+                )
                 post = {
                     "success": f"{ev['success_rate']:.2f}",
                     "return": f"{ev['mean_return']:.1f}",
@@ -307,6 +329,13 @@ class TrainingRun:
                 bar.set_postfix(sps=f"{sps:.0f}", **post)
                 totals = {k: 0.0 for k in EPISODE_KEYS}
                 t_sps, s_sps = time.perf_counter(), step
+                if self.stop_at_success is not None and ev["success_rate"] >= self.stop_at_success:
+                    print(
+                        f"eval success {ev['success_rate']:.2f} >= {self.stop_at_success}: "
+                        f"stopping at {step} env steps",
+                        file=sys.stderr,
+                    )
+                    break
         bar.close()
         if tb is not None:
             tb.close()
@@ -319,10 +348,12 @@ class TrainingRun:
             self.out / "final_policy", self.trainer.policy_params(carry), self._policy_meta(step)
         )
         rows = self._read_rows()
-        t95 = next(
-            (float(r["wall_s"]) for r in rows if _f(r["eval/success_rate"]) >= SUCCESS_THRESHOLD),
+        first95 = next(
+            (r for r in rows if _f(r["eval/success_rate"]) >= SUCCESS_THRESHOLD),
             None,
         )
+        t95 = float(first95["wall_s"]) if first95 else None
+        t95_train = _f(first95.get("train_wall_s")) if first95 else None
         last = rows[-1] if rows else {}
         summary = {
             "env": self.cfg.env,
@@ -331,6 +362,9 @@ class TrainingRun:
             "env_steps": step,
             "wall_s": round(wall_s, 1),
             "time_to_95pct_success_s": t95,
+            # the same without the evaluations' wall clock (compilation and prefill included)
+            "time_to_95pct_success_train_s": t95_train,
+            "step_at_95pct_success": int(first95["step"]) if first95 else None,
             "untrained_eval_return": _f(rows[0]["eval/mean_return"]) if rows else None,
             "final_eval": {k[5:]: _f(v) for k, v in last.items() if k.startswith("eval/")},
             **provenance(),
