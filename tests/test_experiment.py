@@ -42,7 +42,7 @@ def test_short_extraction_writes_complete_outputs(tmp_path):
         repeats=1,
         speed_m_s=0.1,
         settle_s=0.1,
-        chunk_steps=200,
+        chunk_steps=800,
     )
     ex = Extraction("rect-1", cfg)
     res = ex.run(progress=False)

@@ -1,28 +1,53 @@
-"""Publish a finished training run as a pretrained policy inside the package.
+"""Publish a training run's policy as a pretrained policy inside the package.
 
-    python train/publish_policy.py RUN_DIR rect --episodes 256
+    python train/publish_policy.py RUN_DIR rect [--checkpoint best|final|STEP] [--episodes 256]
 
-copies ``RUN_DIR/final_policy`` into ``peghole_mjx/policies/<name>_extract/`` with the run's
-``metrics.csv``, ``curves.png`` and ``summary.json``, evaluates it against the scripted
-baseline (``evaluation.json``, the same as ``peghole evaluate <name> --episodes N --json``)
-and writes ``benchmarks/results/train_<name>_cpu.json`` (or ``_gpu``) for the benchmark
-tables.
+copies the chosen policy into ``peghole_mjx/policies/<name>_extract/`` with the run's
+``metrics.csv``, ``curves.png`` and ``summary.json``, then evaluates it against the scripted
+baseline on fresh episodes (``evaluation.json``: the same as ``peghole evaluate <name>
+--episodes N --json``).
+
+``--checkpoint best`` (the default) takes the checkpoint whose training-time evaluation had
+the highest success rate, ties broken by the lower mean extraction force |F_z| (the thesis's
+R3 measure). Those evaluations use their own seeds (10000 + n), so the published evaluation
+(seed 0) is independent of the selection. The choice is recorded in ``policy.json``
+(``selection``).
 """
 
 from __future__ import annotations
 
 import argparse
+import csv
 import json
 import shutil
 from pathlib import Path
 
-ROOT = Path(__file__).resolve().parents[1]
+
+def choose_checkpoint(run: Path, which: str) -> tuple[Path, dict]:
+    """The policy directory of ``which`` (best | final | a step number) and why it was chosen."""
+    if which == "final":
+        return run / "final_policy", {"rule": "final policy of the run"}
+    with (run / "metrics.csv").open() as f:
+        rows = [r for r in csv.DictReader(f) if int(r["step"]) > 0]
+    if which == "best":
+        row = max(rows, key=lambda r: (float(r["eval/success_rate"]), -float(r["eval/mean_fz_N"])))
+        rule = "highest training-eval success, then lowest mean |F_z|"
+    else:
+        row = next(r for r in rows if int(r["step"]) == int(which))
+        rule = f"step {which}"
+    step = int(row["step"])
+    path = run / "checkpoints" / f"step_{step:010d}"
+    if not (path / "policy.json").exists():  # the last eval's checkpoint is the final policy
+        path = run / "final_policy"
+    keep = ("eval/episodes", "eval/success_rate", "eval/mean_time_s", "eval/mean_fz_N")
+    return path, {"rule": rule, "step": step, **{k: float(row[k]) for k in keep}}
 
 
 def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawTextHelpFormatter)
     ap.add_argument("run", type=Path)
     ap.add_argument("name", choices=("rect", "dual"))
+    ap.add_argument("--checkpoint", default="best", help="best | final | an env-step count")
     ap.add_argument("--episodes", type=int, default=256)
     ap.add_argument("--seed", type=int, default=0)
     args = ap.parse_args()
@@ -30,39 +55,26 @@ def main() -> int:
     from peghole_mjx.policies import PRETRAINED
     from peghole_mjx.training.evaluate import evaluate
 
+    src, selection = choose_checkpoint(args.run, args.checkpoint)
     dest = PRETRAINED[args.name]
-    dest.mkdir(parents=True, exist_ok=True)
-    for f in ("policy.json", "params.npz"):
-        shutil.copy2(args.run / "final_policy" / f, dest / f)
+    if dest.exists():
+        shutil.rmtree(dest)
+    dest.mkdir(parents=True)
+    shutil.copy2(src / "params.npz", dest / "params.npz")
+    meta = json.loads((src / "policy.json").read_text())
+    meta["selection"] = selection
+    (dest / "policy.json").write_text(json.dumps(meta, indent=2) + "\n")
     for f in ("metrics.csv", "curves.png", "summary.json"):
         if (args.run / f).exists():
             shutil.copy2(args.run / f, dest / f)
+    if not (dest / "curves.png").exists():  # a run ended before its finish(): plot its metrics
+        from peghole_mjx.training.plots import plot_curves
+
+        plot_curves([args.run], dest / "curves.png")
     res = evaluate(args.name, args.episodes, seed=args.seed)
     (dest / "evaluation.json").write_text(json.dumps(res, indent=2) + "\n")
-
-    summary = json.loads((args.run / "summary.json").read_text())
-    rows = (args.run / "metrics.csv").read_text().splitlines()
-    kind = "cpu" if summary["device"].startswith("cpu") else "gpu"
-    bench = {
-        "env": summary["env"],
-        "time_to_success_s": summary["time_to_95pct_success_s"],
-        "success_threshold": 0.95,
-        "final_success_rate": summary["final_eval"].get("success_rate"),
-        "train_wall_s": summary["wall_s"],
-        "env_steps": summary["env_steps"],
-        "evaluation": {
-            k: res[k] for k in ("policy", "baseline", "force_reduction_pct", "episodes")
-        },
-        "metrics_rows": len(rows) - 1,
-        "device": summary["device"],
-        "versions": summary["versions"],
-        "date": summary["date"],
-        "note": "wall clock includes JIT compilation and evaluations; CPU runs shared the 2 cores "
-        "with other jobs",
-    }
-    out = ROOT / "benchmarks" / "results" / f"train_{args.name}_{kind}.json"
-    out.write_text(json.dumps(bench, indent=2) + "\n")
-    print(dest, out)
+    print(json.dumps({"selection": selection, "force_reduction_pct": res["force_reduction_pct"]}))
+    print(dest)
     return 0
 
 

@@ -46,13 +46,14 @@ LC_MM = {"rect": (0.0, 75.0, 150.0), "dual": (0.0, 25.0, 50.0)}
 
 
 #: The experiment's physics step as a fraction of the project's (``SimOptions().timestep``).
-#: The rect presets' radial clearances are 25-300 um. At the default 2 ms step (contact time
-#: constant 4 ms), the peg's contacts in rect-2 / rect-3 penetrate 12-30 um while pulling, over
-#: the 25 % of the radial clearance the experiment allows (6.25 um for rect-3), whatever the
-#: solimp impedance (0.99-0.997 change nothing; 0.999 goes NaN in float32). Measured on rect-3,
-#: 6 worlds: 2 ms 11-14 um, 1 ms 8-9 um, 0.5 ms 4.6-5.1 um. So the rect experiment runs at a
-#: quarter of the default step; the dual presets (at most 12 um of 50-400 um) keep it.
-TIMESTEP_DIVISOR = {"rect": 4, "dual": 1}
+#: The rect presets' radial clearances are 25-300 um and the experiment allows a penetration
+#: of 25 % of it (6.25 um for rect-3). At the default 2 ms step (contact time constant 4 ms)
+#: the pulled peg's contacts penetrate 11-30 um in rect-2 / rect-3, whatever the solimp
+#: impedance (0.99-0.997 change nothing; 0.999 goes NaN in float32). Max over the rect-3
+#: worlds (docs/control.md): 2 ms 11-14 um, 1 ms 8-9 um, 0.5 ms 7.5 um (2 of 18 worlds over),
+#: 0.25 ms 3.9 um. So the rect experiment runs at an eighth of the default step; the dual
+#: presets (at most 12 um of 50-400 um at 2 ms) keep it.
+TIMESTEP_DIVISOR = {"rect": 8, "dual": 1}
 
 
 @dataclass(frozen=True)

@@ -155,7 +155,12 @@ class TrainingRun:
         with np.load(path / "state.npz") as z:
             leaves = [z[f"leaf_{i:05d}"] for i in range(len(z.files))]
         if len(leaves) != len(tleaves):
-            raise UserInputError(f"{path}: saved state does not match this run's config")
+            raise UserInputError(
+                f"{path}: saved state does not match this run's config ({len(leaves)} arrays "
+                f"saved, {len(tleaves)} expected): the config or the peghole_mjx version changed "
+                "since the checkpoint; its policy (policy.json, params.npz) still loads with "
+                "peghole evaluate"
+            )
         bad = [
             i for i, (t, x) in enumerate(zip(tleaves, leaves, strict=True)) if t.shape != x.shape
         ]
