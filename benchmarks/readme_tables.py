@@ -254,8 +254,10 @@ def pretrained() -> str:
                 f"R5: peak F_z > {th['peak_fz_N_baseline']} N",
             ),
             "",
-            f"Mean extraction force vs the baseline: **{ev['force_reduction_pct']:+.1f} %** "
-            f"reduction (thesis R3: {th['force_reduction_pct']} %).",
+            f"Mean extraction force of the policy vs the baseline: "
+            f"**{-ev['force_reduction_pct']:+.1f} %** "
+            f"({'lower' if ev['force_reduction_pct'] > 0 else 'higher'}; thesis R3: "
+            f"{-th['force_reduction_pct']:+.1f} %, target: at least 29.6 % lower).",
             "",
         ]
     return "\n".join(lines).rstrip()
