@@ -210,6 +210,30 @@ def time_to_success() -> str:
     return "\n".join(lines)
 
 
+def compliance() -> str:
+    """Peak force by compliance-centre location, reductions beside the thesis's, penetration."""
+    lines = [
+        "| preset | peak F N: tip / centre / top | tip vs top % (thesis 77.1) | "
+        "tip vs centre % (thesis 55.6) | tip < centre < top | max penetration mm "
+        "(limit) | NaN worlds | step ms | device, date |",
+        "|---|---|---|---|---|---|---|---|---|",
+    ]
+    for geom in ("rect", "dual"):
+        d = json.loads((RESULTS / f"compliance_{geom}.json").read_text())
+        step_ms = 1000 * d["config"]["sim"]["timestep"]
+        for preset, peaks in d["peak_force_N"].items():
+            tip, centre, top = (peaks[k] for k in sorted(peaks, key=float))
+            lines.append(
+                f"| {preset} | {tip:.3f} / {centre:.3f} / {top:.3f} | "
+                f"{d['reduction_tip_vs_top_pct'][preset]:.1f} | "
+                f"{d['reduction_tip_vs_centre_pct'][preset]:.1f} | "
+                f"{'yes' if d['ordering_tip_lt_centre_lt_top'][preset] else 'no'} | "
+                f"{d['max_penetration_mm'][preset]:.4f} ({d['penetration_limit_mm'][preset]}) | "
+                f"{d['nan_worlds']} | {step_ms:g} | {d['device']}, {d['date'][:10]} |"
+            )
+    return "\n".join(lines)
+
+
 POLICIES = ROOT / "peghole_mjx" / "policies"
 
 
@@ -266,6 +290,7 @@ def pretrained() -> str:
 TABLES = {
     "models_check": models_check,
     "env_rollouts": env_rollouts,
+    "compliance": compliance,
     "throughput": throughput,
     "roofline": roofline,
     "time_to_success": time_to_success,
