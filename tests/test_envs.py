@@ -193,7 +193,7 @@ def test_cli_rollout_scripted_rect_64_episodes():
 
 def test_cli_rollout_bad_input():
     for args, msg in (
-        (["--env", "RectExtract", "--policy", "nope.ckpt"], "no such checkpoint"),
+        (["--env", "RectExtract", "--policy", "nope.ckpt"], "no policy at nope.ckpt"),
         (["--env", "RectExtract", "--episodes", "0"], "--episodes"),
         (["--env", "RectExtract", "--preset", "dual-1"], "does not fit"),
     ):

@@ -129,7 +129,10 @@ def _json_default(x):
 def resolve_policy_path(name: str | Path) -> Path:
     """A pretrained name, a policy directory, or a training run / checkpoint directory."""
     if str(name) in PRETRAINED:
-        return PRETRAINED[str(name)]
+        path = PRETRAINED[str(name)]
+        if not (path / "policy.json").exists():
+            raise UserInputError(f"the pretrained policy {name!r} is not in this installation")
+        return path
     path = Path(name)
     if (path / "policy.json").exists():
         return path
