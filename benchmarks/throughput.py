@@ -808,11 +808,8 @@ def main(argv: list[str] | None = None) -> int:
     order = {e: i for i, e in enumerate(ENGINES)}
     rows.sort(key=lambda r: (order[r["engine"]], r["scene"], int(r["worlds"])))
     write_csv(out, rows)
-    note = args.note or (
-        "CPU timings contended: another engineer's CPU training jobs ran on the same 2 cores "
-        if gpu is None
-        else ""
-    )
+    # the load averages before and after are recorded with each run: say in --note what else ran
+    note = args.note
     runs.append(
         {
             "command": "python benchmarks/throughput.py " + " ".join(sys.argv[1:]),
