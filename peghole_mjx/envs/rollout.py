@@ -31,8 +31,12 @@ Policy = Callable[[jax.Array, jax.Array], jax.Array]
 SCRIPTED_SPEED_M_S = 0.02
 
 
+@functools.lru_cache(maxsize=16)
 def scripted_policy(env: PegHoleEnv, speed_m_s: float = SCRIPTED_SPEED_M_S) -> Policy:
-    """Straight pull at ``speed_m_s`` with the env's fixed stiffness and compliance centre."""
+    """Straight pull at ``speed_m_s`` with the env's fixed stiffness and compliance centre.
+
+    Cached per env, so rollouts of the baseline reuse their compiled runner.
+    """
     c = env.config
     a = np.zeros(env.action_size, np.float32)
     a[2] = speed_m_s / c.action.max_speed_m_s
@@ -45,6 +49,7 @@ def scripted_policy(env: PegHoleEnv, speed_m_s: float = SCRIPTED_SPEED_M_S) -> P
     return lambda obs, rng: action
 
 
+@functools.lru_cache(maxsize=16)
 def random_policy(env: PegHoleEnv) -> Policy:
     n = env.action_size
     return lambda obs, rng: jax.random.uniform(rng, (n,), minval=-1.0, maxval=1.0)

@@ -425,20 +425,23 @@ def _train_stats(t: dict[str, float]) -> dict[str, float]:
     return out
 
 
+_EVAL_KEYS = (
+    "episodes",
+    "success_rate",
+    "mean_time_s",
+    "mean_fz_N",
+    "peak_fz_N",
+    "mean_fxy_N",
+    "mean_return",
+    "mean_discounted_return",
+    "nan_worlds",
+    "jammed",
+)
+
+
 def _prefix(p: str, d: dict[str, Any]) -> dict[str, Any]:
-    keys = {
-        "episodes": "episodes",
-        "success_rate": "success_rate",
-        "mean_time_s": "mean_time_s",
-        "mean_fz_N": "mean_fz_N",
-        "peak_fz_N": "peak_fz_N",
-        "mean_fxy_N": "mean_fxy_N",
-        "mean_return": "mean_return",
-        "mean_discounted_return": "mean_discounted_return",
-        "nan_worlds": "nan_worlds",
-        "jammed": "jammed",
-    }
-    return {p + v: d[k] for k, v in keys.items() if k in d}
+    """The rollout summary's logged keys, prefixed (``eval/...``)."""
+    return {p + k: d[k] for k in _EVAL_KEYS if k in d}
 
 
 def _fmt(v):

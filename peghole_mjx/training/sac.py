@@ -182,13 +182,24 @@ class SACTrainer:
         return jax.tree.map(_strong, carry)
 
     # ------------------------------------------------------------------ acting
-    def _world_step(self, state, action, key):
-        """One env step; a finished world restarts from a fresh randomised reset."""
-        nxt = self.env.step(state, action)
-        fresh = self.env.reset(key)
+    def _step_and_reset(self, states, actions, key):
+        """One batched env step; finished worlds restart from a fresh randomised reset.
+
+        The resets (an IK solve each) run only on steps where some world finished: under
+        ``vmap`` a per-world branch would compute them for every world at every step.
+        """
+        nxt = jax.vmap(self.env.step)(states, actions)
         done = nxt.done > 0
-        new = jax.tree.map(lambda f, x: jnp.where(done, f, x), fresh, nxt)
-        return nxt, new
+
+        def with_resets(_):
+            fresh = jax.vmap(self.env.reset)(jax.random.split(key, self.envs_per_dev))
+
+            def pick(f, x):
+                return jnp.where(done.reshape(done.shape + (1,) * (x.ndim - 1)), f, x)
+
+            return jax.tree.map(pick, fresh, nxt)
+
+        return nxt, jax.lax.cond(jnp.any(done), with_resets, lambda _: nxt, None)
 
     def _actor_step(self, ts: TrainingState, carry: Carry, key, deterministic=False):
         """Act in every world, store the transitions, track finished episodes."""
@@ -199,9 +210,7 @@ class SACTrainer:
             actions = self._dist.mode(logits)
         else:
             actions = self._dist.sample(logits, k_act)
-        nxt, new_state = jax.vmap(self._world_step)(
-            es, actions, jax.random.split(k_reset, self.envs_per_dev)
-        )
+        nxt, new_state = self._step_and_reset(es, actions, k_reset)
         trans = Transition(
             observation=es.obs,
             action=actions,
@@ -218,18 +227,9 @@ class SACTrainer:
         dret = acc["discounted_return"] + acc["gamma_t"] * nxt.reward
         done = nxt.done > 0
         m = nxt.metrics
-        totals = {
-            "episodes": done.sum(),
-            "success": jnp.where(done, m["success"], 0.0).sum(),
-            "jammed": jnp.where(done, m["jammed"], 0.0).sum(),
-            "nan": jnp.where(done, m["nan"], 0.0).sum(),
-            "extraction_time_s": jnp.where(done, m["extraction_time_s"], 0.0).sum(),
-            "mean_fz_N": jnp.where(done, m["mean_fz_N"], 0.0).sum(),
-            "peak_fz_N": jnp.where(done, m["peak_fz_N"], 0.0).sum(),
-            "mean_fxy_N": jnp.where(done, m["mean_fxy_N"], 0.0).sum(),
-            "return": jnp.where(done, ret, 0.0).sum(),
-            "discounted_return": jnp.where(done, dret, 0.0).sum(),
-        }
+        ended = {**m, "return": ret, "discounted_return": dret}
+        totals = {k: jnp.where(done, ended[k], 0.0).sum() for k in EPISODE_KEYS if k != "episodes"}
+        totals["episodes"] = done.sum()
         ep_acc = {
             "return": jnp.where(done, 0.0, ret),
             "discounted_return": jnp.where(done, 0.0, dret),
