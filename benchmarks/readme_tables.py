@@ -291,6 +291,64 @@ def pretrained() -> str:
     return "\n".join(lines).rstrip()
 
 
+def force_sources() -> str:
+    """The scripted baseline with one setting changed (``benchmarks/force_sources.py``)."""
+    path = RESULTS / "force_sources_rect_cpu-2core.json"
+    if not path.exists():
+        return "Pending: run `python benchmarks/force_sources.py`."
+    d = json.loads(path.read_text())
+    lines = [
+        f"{d['env']}, {d['episodes']} episodes (seed {d['seed']}) per variant; {d['device']}; "
+        f"{d['date']}; from [`{path.relative_to(ROOT)}`]({path.relative_to(ROOT)}).",
+        "",
+        "| variant | change | success | mean F_z N | vs baseline | peak F_z N | mean F_xy N |",
+        "|---|---|---|---|---|---|---|",
+    ]
+    for r in d["variants"]:
+        lines.append(
+            f"| {r['variant']} | {r['change']} | {r['success_rate']:.3f} | {r['mean_fz_N']:.3f} "
+            f"| {r['fz_vs_baseline_pct']:+.1f} % | {r['peak_fz_N']:.2f} | {r['mean_fxy_N']:.2f} |"
+        )
+    return "\n".join(lines)
+
+
+def rl_vs_rlcs() -> str:
+    """RL vs RL + CS learning runs (``benchmarks/rl_vs_rlcs.py``, thesis Fig 4.5, C4.1)."""
+    paths = sorted(RESULTS.glob("rl_vs_rlcs_*.json"))
+    if not paths:
+        return "Pending: run `python benchmarks/rl_vs_rlcs.py`."
+    lines = []
+    for path in paths:
+        d = json.loads(path.read_text())
+        a, b = d["rl_cs"], d["rl"]
+        lines += [
+            f"{d['env']} on {d['device']} ({d['date'][:10]}), profile `{a['profile']}`, seed "
+            f"{a['seed']}; from [`{path.relative_to(ROOT)}`]({path.relative_to(ROOT)}) and "
+            f"its `.png`. {d['note']}".rstrip(),
+            "",
+            "| run | env steps | training episodes: mean F_z N (std over the run's windows) "
+            "| evaluations: mean success | evaluations: mean F_z N | last eval: success, F_z N |",
+            "|---|---|---|---|---|---|",
+        ]
+        for label, r in (("RL + CS", a), ("RL", b)):
+            last = r["evaluations"][-1]
+            lines.append(
+                f"| {label} | {r['env_steps']} | {r['train_mean_fz_N']:.2f} "
+                f"({r['train_std_fz_N']:.2f}, {r['train_windows']} windows) | "
+                f"{r['eval_mean_success']:.3f} | "
+                f"{r['eval_mean_fz_N']:.2f} | {last['success_rate']:.3f}, {last['mean_fz_N']:.2f} |"
+            )
+        c = d["c4_1"]
+        lines += [
+            "",
+            f"C4.1 ({c['claim']}): lower {'yes' if c['lower'] else 'no'}, steadier "
+            f"{'yes' if c['steadier'] else 'no'}: **{c['verdict']}**; training-episode force "
+            f"{d['force_reduction_train_pct']:.1f} % lower with the CS.",
+            "",
+        ]
+    return "\n".join(lines).rstrip()
+
+
 TABLES = {
     "models_check": models_check,
     "env_rollouts": env_rollouts,
@@ -299,6 +357,8 @@ TABLES = {
     "roofline": roofline,
     "time_to_success": time_to_success,
     "pretrained": pretrained,
+    "force_sources": force_sources,
+    "rl_vs_rlcs": rl_vs_rlcs,
 }
 
 

@@ -43,6 +43,7 @@ def main(argv: list[str] | None = None) -> int:
 
     import jax
 
+    from peghole_mjx.control import LIMITS
     from peghole_mjx.provenance import provenance
     from peghole_mjx.training.config import load_train_config
     from peghole_mjx.training.run import TrainingRun
@@ -54,6 +55,9 @@ def main(argv: list[str] | None = None) -> int:
         "num_eval_envs": args.eval_episodes,
         "num_timesteps": args.max_steps,
         "seed": args.seed,
+        # the task measured so far: the action's full speed limit (the cpu/full profiles
+        # train the published policy at 25 mm/s)
+        "env.action.max_speed_m_s": LIMITS.max_speed_m_s,
     }
     cfg = load_train_config("RectExtract", profile, overrides, compliance_strategy=False)
     run = TrainingRun(cfg, args.out, progress=True, render=False, stop_at_success=THRESHOLD)

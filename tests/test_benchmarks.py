@@ -17,6 +17,7 @@ sys.path.insert(0, str(ROOT / "benchmarks"))
 import bench_common  # noqa: E402
 import plot  # noqa: E402
 import readme_tables  # noqa: E402
+import rl_vs_rlcs  # noqa: E402
 import throughput  # noqa: E402
 
 from peghole_mjx import envs  # noqa: E402
@@ -325,3 +326,36 @@ def test_plots_write_pngs(tmp_path):
     assert [o.name for o in outs] == ["throughput_cpu-9core_rect.png"]
     out = plot.plot_time_to_success(tmp_path, results=tmp_path)
     assert out.exists() and outs[0].stat().st_size > 1000
+
+
+def _fake_run(path, cs: bool, train_fz: list[float]):
+    """A run directory with the files rl_vs_rlcs.py reads (run.json, metrics.csv)."""
+    path.mkdir()
+    cfg = {"env": "RectExtract", "profile": "cpu", "seed": 0}
+    cfg["env_overrides"] = {"compliance_strategy": cs}
+    (path / "run.json").write_text(json.dumps({"config": cfg}))
+    keys = ["success_rate", "mean_time_s", "mean_fz_N", "peak_fz_N", "mean_fxy_N"]
+    keys.append("mean_discounted_return")
+    head = ["step", *[f"eval/{k}" for k in keys], "train/mean_fz_N"]
+    rows = [",".join(head), ",".join(["0"] + ["1"] * len(keys) + [""])]
+    for i, fz in enumerate(train_fz, start=1):
+        rows.append(",".join([str(20000 * i)] + ["1"] * len(keys) + [str(fz)]))
+    (path / "metrics.csv").write_text("\n".join(rows) + "\n")
+
+
+def test_rl_vs_rlcs_verdict_and_bad_input(tmp_path):
+    _fake_run(tmp_path / "cs", True, [4.0, 4.2, 3.8])
+    _fake_run(tmp_path / "rl", False, [6.0, 9.0, 3.0])
+    out = tmp_path / "out"
+    out.mkdir()
+    args = ["--cs", str(tmp_path / "cs"), "--no-cs", str(tmp_path / "rl"), "--results", str(out)]
+    assert rl_vs_rlcs.main(args) == 0
+    (res,) = [json.loads(p.read_text()) for p in out.glob("*.json")]
+    assert res["rl_cs"]["train_mean_fz_N"] == pytest.approx(4.0)
+    assert res["rl"]["train_mean_fz_N"] == pytest.approx(6.0)
+    assert res["c4_1"]["lower"] and res["c4_1"]["steadier"]
+    assert res["force_reduction_train_pct"] == pytest.approx(100 / 3)
+    # the runs swapped: refused with the reason
+    swapped = ["--cs", str(tmp_path / "rl"), "--no-cs", str(tmp_path / "cs"), "--results", str(out)]
+    with pytest.raises(SystemExit, match="CS on"):
+        rl_vs_rlcs.main(swapped)

@@ -58,7 +58,41 @@ def test_registry():
         "RectExtract",
         config_overrides={"compliance_strategy": True, "learn_compliance_centre": True},
     )
-    assert env.action_size == 8
+    assert env.action_size == 9 and env.action_index == {"k_xy": 6, "k_rot": 7, "L_C": 8}
+    env = envs.load(
+        "RectExtract", config_overrides={"compliance_strategy": True, "compliance_rotation": False}
+    )
+    assert env.action_size == 7 and env.action_index == {"k_xy": 6}
+
+
+def test_compliance_strategy_action_maps_onto_its_ranges_and_baseline_holds_the_fixed_gains():
+    env = envs.load(
+        "RectExtract",
+        config_overrides={"compliance_strategy": True, "learn_compliance_centre": True},
+    )
+    s, L = env.config.stiffness, env.spec.length_mm * 1e-3
+    info = {
+        "hole_mat": jnp.eye(3),
+        "cmd_tip": jnp.zeros(3),
+        "wrench_ff": jnp.zeros(3),
+        "k_xy": jnp.float32(0.0),
+        "k_rot": jnp.float32(0.0),
+        "L_C": jnp.float32(0.0),
+    }
+
+    def decode(a):
+        _, _, k_xy, k_rot, L_C = env._decode_action(jnp.asarray(a, jnp.float32), info)
+        return float(k_xy), float(k_rot), float(L_C)
+
+    lo, hi = -np.ones(9), np.ones(9)
+    np.testing.assert_allclose(decode(lo), (s.k_xy_min_N_m, s.k_rot_min_Nm_rad, 0.0), rtol=1e-6)
+    np.testing.assert_allclose(decode(hi), (s.k_xy_max_N_m, s.k_rot_max_Nm_rad, L), rtol=1e-6)
+    np.testing.assert_allclose(decode(3 * hi), decode(hi))  # actions are clipped to [-1, 1]
+    # the scripted baseline (the Ch 2-3 method) commands exactly the fixed gains and L_C
+    a = np.asarray(scripted_policy(env)(None, None))
+    np.testing.assert_allclose(
+        decode(a), (s.k_xy_N_m, s.k_rot_Nm_rad, s.compliance_centre_mm * 1e-3), atol=1e-4
+    )
 
 
 @pytest.mark.slow

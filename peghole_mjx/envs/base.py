@@ -64,12 +64,19 @@ def base_config(preset: str) -> config_dict.ConfigDict:
             max_speed_m_s=LIMITS.max_speed_m_s,  # |dz| per step = this x ctrl_dt
             max_force_step_N=2.0,  # |dF| per step
         ),
-        compliance_strategy=False,  # when on, the action also sets k_xy (and L_C if enabled)
+        compliance_strategy=False,  # when on, the action also sets k_xy (and K_theta, L_C)
+        # with compliance_strategy: the action also sets the rotational stiffness K_theta (the
+        # stiffness that the angular error loads; see docs/training.md, "compliance strategy")
+        compliance_rotation=True,
         learn_compliance_centre=False,  # with compliance_strategy: the action also sets L_C
         stiffness=config_dict.create(
             k_xy_N_m=GAINS.lateral_stiffness_N_m,  # fixed lateral stiffness (CS off)
             k_xy_min_N_m=50.0,  # CS bounds (Table 4.2's 50 N/m to 1 N/mm)
             k_xy_max_N_m=1000.0,
+            # CS bounds of K_theta: the KUKA iiwa's Cartesian impedance mode allows 0-300 N m/rad;
+            # the fixed value (below) is the top of the range
+            k_rot_min_Nm_rad=10.0,
+            k_rot_max_Nm_rad=GAINS.rotational_stiffness_Nm_rad,
             k_z_N_m=GAINS.axial_stiffness_N_m,
             k_rot_Nm_rad=GAINS.rotational_stiffness_Nm_rad,
             damping_ratio=GAINS.damping_ratio,
@@ -163,7 +170,8 @@ class PegHoleEnv:
     | 2 | flange height above its start, / peg length | 0 inserted, 1 out |
     | 3-5 | F/T sensor force Fx, Fy, Fz (peg weight removed) | / 20 N |
     | 6-8 | flange tilt theta, phi, psi (rotation vector vs. straight down) | deg |
-    | + | optional: torques (/3 N m), k_xy (/1000 N/m) and L_C (/L), previous action | |
+    | + | optional: torques (/3 N m), k_xy (/1000 N/m), K_theta (/300 N m/rad), L_C (/L), | |
+    |   | previous action | |
 
     Action (eq 4.3), each in [-1, 1]:
 
@@ -173,7 +181,8 @@ class PegHoleEnv:
     | 2 | dz: commanded pull (+ = out) | x 0.1 m/s x ctrl_dt |
     | 3-5 | dFx, dFy, dFz: feed-forward force change | x 2 N per step, total clipped to 20/20/60 N |
     | 6 | k_xy (compliance_strategy) | [50, 1000] N/m |
-    | 7 | L_C (learn_compliance_centre) | [0, L] |
+    | 7 | K_theta (compliance_strategy and compliance_rotation) | [10, 300] N m/rad |
+    | last | L_C (learn_compliance_centre) | [0, L] |
 
     Reward (eq 4.4, Table 4.1), named terms logged as ``metrics["reward/<term>"]``:
 
@@ -255,13 +264,20 @@ class PegHoleEnv:
         return self._n_substeps
 
     @property
+    def action_index(self) -> dict[str, int]:
+        """Index of each compliance-strategy action (``k_xy``, ``k_rot``, ``L_C``) present."""
+        c, out = self._config, {}
+        if c.compliance_strategy:
+            out["k_xy"] = 6
+            if c.compliance_rotation:
+                out["k_rot"] = len(out) + 6
+            if c.learn_compliance_centre:
+                out["L_C"] = len(out) + 6
+        return out
+
+    @property
     def action_size(self) -> int:
-        c = self._config
-        return (
-            6
-            + int(c.compliance_strategy)
-            + int(c.compliance_strategy and c.learn_compliance_centre)
-        )
+        return 6 + len(self.action_index)
 
     @property
     def observation_size(self) -> int:
@@ -347,6 +363,7 @@ class PegHoleEnv:
             "hole_mat": hole_mat,
             "wrench_ff": jnp.zeros(3),
             "k_xy": jnp.asarray(k_xy, jnp.float32),
+            "k_rot": jnp.asarray(c.stiffness.k_rot_Nm_rad, jnp.float32),
             "L_C": jnp.asarray(c.stiffness.compliance_centre_mm * MM, jnp.float32),
             "friction_scale": fric,
             "depth_mm": self._depth_mm(data, hole_pos, hole_mat),
@@ -386,6 +403,7 @@ class PegHoleEnv:
             "fxy_N",
             "depth_mm",
             "k_xy_N_m",
+            "k_rot_Nm_rad",
         ]
         return {n: jnp.zeros(()) for n in names}
 
@@ -429,7 +447,13 @@ class PegHoleEnv:
             parts.append(t / c.obs.torque_scale_Nm)
         if c.obs.stiffness:
             parts.append(
-                jnp.stack([info["k_xy"] / 1000.0, info["L_C"] / (self.spec.length_mm * MM)])
+                jnp.stack(
+                    [
+                        info["k_xy"] / 1000.0,
+                        info["k_rot"] / GAINS.rotational_stiffness_Nm_rad,
+                        info["L_C"] / (self.spec.length_mm * MM),
+                    ]
+                )
             )
         if c.obs.prev_action:
             parts.append(info["prev_action"])
@@ -438,7 +462,7 @@ class PegHoleEnv:
 
     # ------------------------------------------------------------------ step
     def _decode_action(self, action, info):
-        """Commanded tip pose, feed-forward force, stiffness and L_C after this action."""
+        """Commanded tip pose, feed-forward force, k_xy, K_theta and L_C after this action."""
         c, a = self._config, jnp.clip(action, -1.0, 1.0)
         H = info["hole_mat"]
         dxy = a[:2] * c.action.max_step_offset_mm * MM
@@ -446,15 +470,21 @@ class PegHoleEnv:
         cmd_tip = info["cmd_tip"] + H @ jnp.array([dxy[0], dxy[1], dz])
         cap = jnp.asarray(LIMITS.max_force_N)
         wrench_ff = jnp.clip(info["wrench_ff"] + a[3:6] * c.action.max_force_step_N, -cap, cap)
-        k_xy, L_C = info["k_xy"], info["L_C"]
-        if c.compliance_strategy:
-            s = c.stiffness
-            k_xy = s.k_xy_min_N_m + 0.5 * (a[6] + 1.0) * (s.k_xy_max_N_m - s.k_xy_min_N_m)
-            if c.learn_compliance_centre:
-                L_C = 0.5 * (a[7] + 1.0) * self.spec.length_mm * MM
-        return cmd_tip, wrench_ff, k_xy, L_C
+        k_xy, k_rot, L_C = info["k_xy"], info["k_rot"], info["L_C"]
+        s, idx = c.stiffness, self.action_index
 
-    def _physics(self, data, info, cmd_tip_prev, cmd_tip, wrench_ff, k_xy, L_C):
+        def scaled(i, lo, hi):  # action in [-1, 1] -> [lo, hi]
+            return lo + 0.5 * (a[i] + 1.0) * (hi - lo)
+
+        if "k_xy" in idx:
+            k_xy = scaled(idx["k_xy"], s.k_xy_min_N_m, s.k_xy_max_N_m)
+        if "k_rot" in idx:
+            k_rot = scaled(idx["k_rot"], s.k_rot_min_Nm_rad, s.k_rot_max_Nm_rad)
+        if "L_C" in idx:
+            L_C = scaled(idx["L_C"], 0.0, self.spec.length_mm * MM)
+        return cmd_tip, wrench_ff, k_xy, k_rot, L_C
+
+    def _physics(self, data, info, cmd_tip_prev, cmd_tip, wrench_ff, k_xy, k_rot, L_C):
         """Run the substeps with the impedance law tracking a linearly moving target."""
         c, s = self._config, self._config.stiffness
         m = self._mjx_model.replace(
@@ -468,9 +498,7 @@ class PegHoleEnv:
         params = make_params(
             L_C,
             self._init_q[self._qadr],
-            stiffness=jnp.stack(
-                [k_xy, k_xy, s.k_z_N_m, s.k_rot_Nm_rad, s.k_rot_Nm_rad, s.k_rot_Nm_rad]
-            ).astype(jnp.float32),
+            stiffness=jnp.stack([k_xy, k_xy, s.k_z_N_m, k_rot, k_rot, k_rot]).astype(jnp.float32),
             damping_ratio=s.damping_ratio,
             wrench_ff=jnp.concatenate([ff, jnp.zeros(3)]),
         )
@@ -495,9 +523,9 @@ class PegHoleEnv:
     def step(self, state: State, action: jax.Array) -> State:
         c, rc = self._config, self._config.reward_config
         info = dict(state.info)
-        cmd_tip, wrench_ff, k_xy, L_C = self._decode_action(action, info)
+        cmd_tip, wrench_ff, k_xy, k_rot, L_C = self._decode_action(action, info)
         data, wrench = self._physics(
-            state.data, info, info["cmd_tip"], cmd_tip, wrench_ff, k_xy, L_C
+            state.data, info, info["cmd_tip"], cmd_tip, wrench_ff, k_xy, k_rot, L_C
         )
         finite = jnp.all(jnp.isfinite(data.qpos)) & jnp.all(jnp.isfinite(data.qvel))
         # a NaN world keeps its last finite state and ends its episode; the batch goes on
@@ -531,6 +559,7 @@ class PegHoleEnv:
             cmd_tip=cmd_tip,
             wrench_ff=wrench_ff,
             k_xy=jnp.asarray(k_xy, jnp.float32),
+            k_rot=jnp.asarray(k_rot, jnp.float32),
             L_C=jnp.asarray(L_C, jnp.float32),
             depth_mm=depth,
             jam_time=jam_time,
@@ -560,6 +589,7 @@ class PegHoleEnv:
             fxy_N=fxy,
             depth_mm=depth,
             k_xy_N_m=jnp.asarray(k_xy, jnp.float32),
+            k_rot_Nm_rad=jnp.asarray(k_rot, jnp.float32),
         )
         obs = self._obs(data, info)
         return State(data, obs, reward, done, metrics, info)

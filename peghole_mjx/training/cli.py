@@ -33,8 +33,8 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
         "--compliance-strategy",
         choices=("on", "off"),
         default="on",
-        help="on: the action also sets the lateral stiffness k_xy (RL + CS, thesis Sec 4.2); "
-        "off: fixed stiffness (default: on)",
+        help="on: the action also sets the lateral stiffness k_xy and the rotational stiffness "
+        "K_theta (RL + CS, thesis Sec 4.2; docs/training.md); off: fixed stiffness (default: on)",
     )
     t.add_argument("--profile", choices=("full", "cpu", "quick"), default="full")
     t.add_argument("--quick", action="store_true", help="same as --profile quick (CPU smoke run)")

@@ -26,7 +26,8 @@ Keys, and the choices made where Brax's defaults differ from the thesis (stack_n
   ``seed``; ``env_overrides``: flat env-config overrides (e.g. ``episode_length``).
 
 ``--compliance-strategy on`` adds ``compliance_strategy=True`` to the env overrides (the action
-then also sets k_xy, Sec 4.2); ``off`` trains with the fixed stiffness.
+then also sets k_xy and K_theta, Sec 4.2; docs/training.md); ``off`` trains with the fixed
+stiffness.
 """
 
 from __future__ import annotations
