@@ -66,7 +66,7 @@ def base_config(preset: str) -> config_dict.ConfigDict:
         ),
         compliance_strategy=False,  # when on, the action also sets k_xy (and K_theta, L_C)
         # with compliance_strategy: the action also sets the rotational stiffness K_theta (the
-        # stiffness that the angular error loads; see docs/training.md, "compliance strategy")
+        # stiffness that the angular error loads; see docs/training.md, "Compliance strategy")
         compliance_rotation=True,
         learn_compliance_centre=False,  # with compliance_strategy: the action also sets L_C
         stiffness=config_dict.create(
