@@ -264,20 +264,33 @@ class PegHoleEnv:
         return self._n_substeps
 
     @property
-    def action_index(self) -> dict[str, int]:
-        """Index of each compliance-strategy action (``k_xy``, ``k_rot``, ``L_C``) present."""
-        c, out = self._config, {}
+    def compliance_actions(self) -> dict[str, tuple[int, float, float]]:
+        """Each compliance-strategy action present: name (``k_xy``, ``k_rot``, ``L_C``) ->
+        (action index, value at -1, value at +1), in N/m, N m/rad and m."""
+        c, s = self._config, self._config.stiffness
+        ranges = {}
         if c.compliance_strategy:
-            out["k_xy"] = 6
+            ranges["k_xy"] = (s.k_xy_min_N_m, s.k_xy_max_N_m)
             if c.compliance_rotation:
-                out["k_rot"] = len(out) + 6
+                ranges["k_rot"] = (s.k_rot_min_Nm_rad, s.k_rot_max_Nm_rad)
             if c.learn_compliance_centre:
-                out["L_C"] = len(out) + 6
-        return out
+                ranges["L_C"] = (0.0, self.spec.length_mm * MM)
+        return {name: (6 + i, *r) for i, (name, r) in enumerate(ranges.items())}
+
+    @property
+    def action_index(self) -> dict[str, int]:
+        """Index of each compliance-strategy action present (see :attr:`compliance_actions`)."""
+        return {name: v[0] for name, v in self.compliance_actions.items()}
+
+    @property
+    def fixed_compliance(self) -> dict[str, float]:
+        """k_xy, K_theta and L_C of the fixed-compliance method (CS off; the baseline)."""
+        s = self._config.stiffness
+        return {"k_xy": s.k_xy_N_m, "k_rot": s.k_rot_Nm_rad, "L_C": s.compliance_centre_mm * MM}
 
     @property
     def action_size(self) -> int:
-        return 6 + len(self.action_index)
+        return 6 + len(self.compliance_actions)
 
     @property
     def observation_size(self) -> int:
@@ -320,7 +333,7 @@ class PegHoleEnv:
 
     def reset(self, rng: jax.Array) -> State:
         """A fully re-randomised episode start (never a cached first state)."""
-        c, r = self._config, self._config.randomization
+        r = self._config.randomization
         keys = jax.random.split(rng, 8)
         # hole pose
         hole_xy = jax.random.uniform(keys[0], (2,), minval=-1.0, maxval=1.0) * r.hole_xy_mm * MM
@@ -352,9 +365,9 @@ class PegHoleEnv:
             keys[5], (), minval=r.friction_scale[0], maxval=r.friction_scale[1]
         )
         lo, hi = r.stiffness_N_m
-        k_xy = jnp.where(
-            hi > 0, jax.random.uniform(keys[6], (), minval=lo, maxval=hi), c.stiffness.k_xy_N_m
-        )
+        fixed = self.fixed_compliance
+        k_xy_draw = jax.random.uniform(keys[6], (), minval=lo, maxval=hi)
+        k_xy = jnp.where(hi > 0, k_xy_draw, fixed["k_xy"])
         info = {
             "rng": keys[7],
             "cmd_tip": cmd_tip,
@@ -363,8 +376,8 @@ class PegHoleEnv:
             "hole_mat": hole_mat,
             "wrench_ff": jnp.zeros(3),
             "k_xy": jnp.asarray(k_xy, jnp.float32),
-            "k_rot": jnp.asarray(c.stiffness.k_rot_Nm_rad, jnp.float32),
-            "L_C": jnp.asarray(c.stiffness.compliance_centre_mm * MM, jnp.float32),
+            "k_rot": jnp.asarray(fixed["k_rot"], jnp.float32),
+            "L_C": jnp.asarray(fixed["L_C"], jnp.float32),
             "friction_scale": fric,
             "depth_mm": self._depth_mm(data, hole_pos, hole_mat),
             "jam_time": jnp.zeros(()),
@@ -470,19 +483,10 @@ class PegHoleEnv:
         cmd_tip = info["cmd_tip"] + H @ jnp.array([dxy[0], dxy[1], dz])
         cap = jnp.asarray(LIMITS.max_force_N)
         wrench_ff = jnp.clip(info["wrench_ff"] + a[3:6] * c.action.max_force_step_N, -cap, cap)
-        k_xy, k_rot, L_C = info["k_xy"], info["k_rot"], info["L_C"]
-        s, idx = c.stiffness, self.action_index
-
-        def scaled(i, lo, hi):  # action in [-1, 1] -> [lo, hi]
-            return lo + 0.5 * (a[i] + 1.0) * (hi - lo)
-
-        if "k_xy" in idx:
-            k_xy = scaled(idx["k_xy"], s.k_xy_min_N_m, s.k_xy_max_N_m)
-        if "k_rot" in idx:
-            k_rot = scaled(idx["k_rot"], s.k_rot_min_Nm_rad, s.k_rot_max_Nm_rad)
-        if "L_C" in idx:
-            L_C = scaled(idx["L_C"], 0.0, self.spec.length_mm * MM)
-        return cmd_tip, wrench_ff, k_xy, k_rot, L_C
+        gains = {k: info[k] for k in ("k_xy", "k_rot", "L_C")}
+        for name, (i, lo, hi) in self.compliance_actions.items():  # [-1, 1] -> [lo, hi]
+            gains[name] = lo + 0.5 * (a[i] + 1.0) * (hi - lo)
+        return cmd_tip, wrench_ff, gains["k_xy"], gains["k_rot"], gains["L_C"]
 
     def _physics(self, data, info, cmd_tip_prev, cmd_tip, wrench_ff, k_xy, k_rot, L_C):
         """Run the substeps with the impedance law tracking a linearly moving target."""

@@ -40,15 +40,10 @@ def scripted_policy(env: PegHoleEnv, speed_m_s: float = SCRIPTED_SPEED_M_S) -> P
     c = env.config
     a = np.zeros(env.action_size, np.float32)
     a[2] = speed_m_s / c.action.max_speed_m_s
-    s, idx = c.stiffness, env.action_index
     # with the compliance strategy: hold k_xy, K_theta and L_C at the env's fixed values
-    if "k_xy" in idx:
-        a[idx["k_xy"]] = 2 * (s.k_xy_N_m - s.k_xy_min_N_m) / (s.k_xy_max_N_m - s.k_xy_min_N_m) - 1
-    if "k_rot" in idx:
-        span = s.k_rot_max_Nm_rad - s.k_rot_min_Nm_rad
-        a[idx["k_rot"]] = 2 * (s.k_rot_Nm_rad - s.k_rot_min_Nm_rad) / span - 1
-    if "L_C" in idx:
-        a[idx["L_C"]] = 2 * s.compliance_centre_mm / env.spec.length_mm - 1
+    fixed = env.fixed_compliance
+    for name, (i, lo, hi) in env.compliance_actions.items():
+        a[i] = 2 * (fixed[name] - lo) / (hi - lo) - 1
     action = jnp.asarray(np.clip(a, -1, 1))
     return lambda obs, rng: action
 
