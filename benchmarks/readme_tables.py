@@ -293,23 +293,27 @@ def pretrained() -> str:
 
 def force_sources() -> str:
     """The scripted baseline with one setting changed (``benchmarks/force_sources.py``)."""
-    path = RESULTS / "force_sources_rect_cpu-2core.json"
-    if not path.exists():
+    paths = sorted(RESULTS.glob("force_sources_*.json"), key=lambda p: "dual" in p.name)
+    if not paths:
         return "Pending: run `python benchmarks/force_sources.py`."
-    d = json.loads(path.read_text())
-    lines = [
-        f"{d['env']}, {d['episodes']} episodes (seed {d['seed']}) per variant; {d['device']}; "
-        f"{d['date']}; from [`{path.relative_to(ROOT)}`]({path.relative_to(ROOT)}).",
-        "",
-        "| variant | change | success | mean F_z N | vs baseline | peak F_z N | mean F_xy N |",
-        "|---|---|---|---|---|---|---|",
-    ]
-    for r in d["variants"]:
-        lines.append(
-            f"| {r['variant']} | {r['change']} | {r['success_rate']:.3f} | {r['mean_fz_N']:.3f} "
-            f"| {r['fz_vs_baseline_pct']:+.1f} % | {r['peak_fz_N']:.2f} | {r['mean_fxy_N']:.2f} |"
-        )
-    return "\n".join(lines)
+    lines = []
+    for path in paths:
+        d = json.loads(path.read_text())
+        lines += [
+            f"{d['env']}, {d['episodes']} episodes (seed {d['seed']}) per variant; {d['device']}; "
+            f"{d['date']}; from [`{path.relative_to(ROOT)}`]({path.relative_to(ROOT)}).",
+            "",
+            "| variant | change | success | mean F_z N | vs baseline | peak F_z N | mean F_xy N |",
+            "|---|---|---|---|---|---|---|",
+        ]
+        for r in d["variants"]:
+            lines.append(
+                f"| {r['variant']} | {r['change']} | {r['success_rate']:.3f} "
+                f"| {r['mean_fz_N']:.3f} | {r['fz_vs_baseline_pct']:+.1f} % | {r['peak_fz_N']:.2f} "
+                f"| {r['mean_fxy_N']:.2f} |"
+            )
+        lines.append("")
+    return "\n".join(lines).rstrip()
 
 
 def rl_vs_rlcs() -> str:

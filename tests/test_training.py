@@ -12,6 +12,7 @@ import signal
 import subprocess
 import sys
 import time
+from pathlib import Path
 
 import jax
 import numpy as np
@@ -119,6 +120,23 @@ def test_evaluate_runs_policy_and_baseline_on_same_episodes(trained):
     # and a different seed meets different episodes
     other = evaluate(run.out / "final_policy", episodes=8, seed=2, progress=False, env=run.env)
     assert other["baseline"]["mean_fz_N"] != res["baseline"]["mean_fz_N"]
+
+
+def test_publish_screening_picks_the_best_screened_checkpoint(trained):
+    """train/publish_policy.py --screen: re-ranks checkpoints on fresh episodes."""
+    sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "train"))
+    from publish_policy import SCREEN_SEED, screen_checkpoints
+
+    run, _ = trained
+    path, sel = screen_checkpoints(run.out, 4, candidates=[3600, 4000])
+    assert set(sel["screen"]) == {"3600", "4000"}
+    best = max(sel["screen"].items(), key=lambda kv: (kv[1]["success_rate"], -kv[1]["mean_fz_N"]))
+    assert str(sel["step"]) == best[0]
+    assert (path / "policy.json").exists()
+    assert path.name in ("final_policy", f"step_{sel['step']:010d}")
+    assert str(SCREEN_SEED) in sel["rule"]
+    with pytest.raises(SystemExit, match="none of the checkpoints"):
+        screen_checkpoints(run.out, 4, candidates=[123])
 
 
 def _peghole(*args):
