@@ -20,7 +20,6 @@ Usage::
 from __future__ import annotations
 
 import argparse
-import csv
 import json
 import sys
 from pathlib import Path
@@ -29,6 +28,9 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from bench_common import RESULTS, device_label, utc_now, versions_dict
+
+from peghole_mjx.errors import UserInputError
+from peghole_mjx.training.plots import read_metrics
 
 #: evaluation columns of metrics.csv copied into the result (without the ``eval/`` prefix)
 EVAL_KEYS = (
@@ -41,14 +43,6 @@ EVAL_KEYS = (
 )
 
 
-def _rows(run: Path) -> list[dict[str, str]]:
-    path = run / "metrics.csv"
-    if not path.exists():
-        raise SystemExit(f"{run}: no metrics.csv (not a training run directory)")
-    with path.open() as f:
-        return list(csv.DictReader(f))
-
-
 def _float(x: str | None) -> float:
     try:
         return float(x)  # type: ignore[arg-type]
@@ -58,9 +52,9 @@ def _float(x: str | None) -> float:
 
 def run_record(run: Path) -> dict:
     """Config, evaluations and training-force statistics of one run."""
+    rows = read_metrics(run)  # a clear error if ``run`` is not a training run
     meta = json.loads((run / "run.json").read_text())
     cfg = meta["config"]
-    rows = _rows(run)
     evals = [
         {"step": int(float(r["step"])), **{k: _float(r.get(f"eval/{k}")) for k in EVAL_KEYS}}
         for r in rows
@@ -99,7 +93,10 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--results", type=Path, default=RESULTS, help="output folder")
     args = p.parse_args(argv)
 
-    cs, nocs = run_record(args.cs), run_record(args.no_cs)
+    try:
+        cs, nocs = run_record(args.cs), run_record(args.no_cs)
+    except UserInputError as e:
+        raise SystemExit(str(e)) from None
     if not cs["compliance_strategy"] or nocs["compliance_strategy"]:
         raise SystemExit("--cs needs a run with the CS on, --no-cs one with it off")
     if cs["env"] != nocs["env"]:

@@ -58,11 +58,13 @@ def test_registry():
         "RectExtract",
         config_overrides={"compliance_strategy": True, "learn_compliance_centre": True},
     )
-    assert env.action_size == 9 and env.action_index == {"k_xy": 6, "k_rot": 7, "L_C": 8}
+    index = {name: v[0] for name, v in env.compliance_actions.items()}
+    assert env.action_size == 9 and index == {"k_xy": 6, "k_rot": 7, "L_C": 8}
     env = envs.load(
         "RectExtract", config_overrides={"compliance_strategy": True, "compliance_rotation": False}
     )
-    assert env.action_size == 7 and env.action_index == {"k_xy": 6}
+    index = {name: v[0] for name, v in env.compliance_actions.items()}
+    assert env.action_size == 7 and index == {"k_xy": 6}
 
 
 def test_compliance_strategy_action_maps_onto_its_ranges_and_baseline_holds_the_fixed_gains():

@@ -21,18 +21,33 @@ episodes each, too few to tell 97 % from 99 % success). The choice is recorded i
 from __future__ import annotations
 
 import argparse
-import csv
 import json
 import shutil
 from pathlib import Path
+
+SCREEN_SEED = 20000  # screening episodes: disjoint from training evals (10000 + n) and seed 0
+SCREEN_WITHIN = 0.1  # screen the checkpoints whose training-eval success is this close to the best
+KEEP = ("eval/episodes", "eval/success_rate", "eval/mean_time_s", "eval/mean_fz_N")
+
+
+def _eval_rows(run: Path) -> list[dict[str, str]]:
+    from peghole_mjx.training.plots import read_metrics
+
+    return [r for r in read_metrics(run) if int(r["step"]) > 0]
+
+
+def _checkpoint_dir(run: Path, step: int) -> Path:
+    path = run / "checkpoints" / f"step_{step:010d}"
+    if not (path / "policy.json").exists():  # the last eval's checkpoint is the final policy
+        path = run / "final_policy"
+    return path
 
 
 def choose_checkpoint(run: Path, which: str) -> tuple[Path, dict]:
     """The policy directory of ``which`` (best | final | a step number) and why it was chosen."""
     if which == "final":
         return run / "final_policy", {"rule": "final policy of the run"}
-    with (run / "metrics.csv").open() as f:
-        rows = [r for r in csv.DictReader(f) if int(r["step"]) > 0]
+    rows = _eval_rows(run)
     if which == "best":
         row = max(rows, key=lambda r: (float(r["eval/success_rate"]), -float(r["eval/mean_fz_N"])))
         rule = "highest training-eval success, then lowest mean |F_z|"
@@ -40,14 +55,11 @@ def choose_checkpoint(run: Path, which: str) -> tuple[Path, dict]:
         row = next(r for r in rows if int(r["step"]) == int(which))
         rule = f"step {which}"
     step = int(row["step"])
-    path = run / "checkpoints" / f"step_{step:010d}"
-    if not (path / "policy.json").exists():  # the last eval's checkpoint is the final policy
-        path = run / "final_policy"
-    keep = ("eval/episodes", "eval/success_rate", "eval/mean_time_s", "eval/mean_fz_N")
-    return path, {"rule": rule, "step": step, **{k: float(row[k]) for k in keep}}
-
-
-SCREEN_SEED = 20000  # screening episodes: disjoint from training evals (10000 + n) and seed 0
+    return _checkpoint_dir(run, step), {
+        "rule": rule,
+        "step": step,
+        **{k: float(row[k]) for k in KEEP},
+    }
 
 
 def screen_checkpoints(
@@ -57,36 +69,34 @@ def screen_checkpoints(
     from peghole_mjx.envs.rollout import rollout
     from peghole_mjx.policies import load_policy
 
-    with (run / "metrics.csv").open() as f:
-        rows = [r for r in csv.DictReader(f) if int(r["step"]) > 0]
-    top = max(float(r["eval/success_rate"]) for r in rows)
+    rows = _eval_rows(run)
+    near = max(float(r["eval/success_rate"]) for r in rows) - SCREEN_WITHIN
+    if candidates is None:
+        steps = [int(r["step"]) for r in rows if float(r["eval/success_rate"]) >= near]
+    else:
+        steps = [int(r["step"]) for r in rows if int(r["step"]) in candidates]
+    if not steps:
+        have = [int(r["step"]) for r in rows]
+        raise SystemExit(f"none of the checkpoints {candidates} is in {run} (it has {have})")
     env, scores = None, []
-    for r in rows:
-        if candidates is not None and int(r["step"]) not in candidates:
-            continue
-        if candidates is None and float(r["eval/success_rate"]) < top - 0.1:
-            continue
-        path, _ = choose_checkpoint(run, r["step"])
-        bundle = load_policy(path)
+    for step in steps:
+        bundle = load_policy(_checkpoint_dir(run, step))
         env = env if env is not None else bundle.make_env()
         s = rollout(env, bundle.policy_fn(), episodes, seed=SCREEN_SEED, params=bundle.params)
         s = s.summary().as_dict()
-        print(f"step {r['step']:>8}: success {s['success_rate']:.3f}  F_z {s['mean_fz_N']:.3f} N")
-        scores.append((s["success_rate"], -s["mean_fz_N"], int(r["step"]), path))
-    if not scores:
-        have = [int(r["step"]) for r in rows]
-        raise SystemExit(f"none of the checkpoints {candidates} is in {run} (it has {have})")
-    _, _, step, path = max(scores, key=lambda t: t[:3])
-    return path, {
+        print(f"step {step:>8}: success {s['success_rate']:.3f}  F_z {s['mean_fz_N']:.3f} N")
+        scores.append((s["success_rate"], -s["mean_fz_N"], step))
+    _, _, best = max(scores)
+    among = (
+        f"the checkpoints at steps {candidates}"
+        if candidates
+        else f"checkpoints within {SCREEN_WITHIN} of the best training-eval success"
+    )
+    return _checkpoint_dir(run, best), {
         "rule": f"highest success on {episodes} screening episodes (seed {SCREEN_SEED}) among "
-        + (
-            f"the checkpoints at steps {candidates}"
-            if candidates
-            else "checkpoints within 0.1 of the best training-eval success"
-        )
-        + ", then lowest mean |F_z|",
-        "step": step,
-        "screen": {str(t[2]): {"success_rate": t[0], "mean_fz_N": -t[1]} for t in scores},
+        f"{among}, then lowest mean |F_z|",
+        "step": best,
+        "screen": {str(st): {"success_rate": sr, "mean_fz_N": -nf} for sr, nf, st in scores},
     }
 
 

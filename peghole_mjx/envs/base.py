@@ -278,11 +278,6 @@ class PegHoleEnv:
         return {name: (6 + i, *r) for i, (name, r) in enumerate(ranges.items())}
 
     @property
-    def action_index(self) -> dict[str, int]:
-        """Index of each compliance-strategy action present (see :attr:`compliance_actions`)."""
-        return {name: v[0] for name, v in self.compliance_actions.items()}
-
-    @property
     def fixed_compliance(self) -> dict[str, float]:
         """k_xy, K_theta and L_C of the fixed-compliance method (CS off; the baseline)."""
         s = self._config.stiffness

@@ -14,6 +14,8 @@ from pathlib import Path
 
 import numpy as np
 
+from peghole_mjx.errors import UserInputError
+
 PANELS = (
     ("mean_fz_N", "extraction force |F_z| per episode (N)", "Fig 4.5"),
     ("mean_fxy_N", "mean |F_xy| per episode (N)", "Fig 4.6"),
@@ -43,6 +45,15 @@ def _column(rows: list[dict[str, str]], key: str) -> tuple[np.ndarray, np.ndarra
     return np.array(xs), np.array(ys)
 
 
+def read_metrics(run: Path) -> list[dict[str, str]]:
+    """The rows of a training run's ``metrics.csv`` (one per evaluation), as strings."""
+    path = Path(run) / "metrics.csv"
+    if not path.exists():
+        raise UserInputError(f"{run}: no metrics.csv (not a training run directory)")
+    with path.open() as f:
+        return list(csv.DictReader(f))
+
+
 def plot_curves(runs: list[Path], out: Path, title: str | None = None) -> Path:
     """One figure with the four panels for every run in ``runs``; returns ``out``."""
     import matplotlib
@@ -53,8 +64,7 @@ def plot_curves(runs: list[Path], out: Path, title: str | None = None) -> Path:
     fig, axes = plt.subplots(2, 2, figsize=(11, 7.5), sharex=True)
     for i, run in enumerate(runs):
         run = Path(run)
-        with (run / "metrics.csv").open() as f:
-            rows = list(csv.DictReader(f))
+        rows = read_metrics(run)
         color = f"C{i}"
         label = run_label(run)
         for ax, (key, ylabel, fig_ref) in zip(axes.flat, PANELS, strict=True):

@@ -37,6 +37,7 @@ from peghole_mjx.errors import UserInputError
 from peghole_mjx.policies import make_policy_fn, save_policy
 from peghole_mjx.provenance import provenance
 from peghole_mjx.training.config import TrainConfig
+from peghole_mjx.training.plots import read_metrics
 from peghole_mjx.training.sac import EPISODE_KEYS, SACTrainer
 
 METRIC_COLUMNS = (
@@ -202,11 +203,9 @@ class TrainingRun:
 
     # ------------------------------------------------------------------ logging
     def _read_rows(self, upto_step: int | None = None) -> list[dict[str, str]]:
-        path = self.out / "metrics.csv"
-        if not path.exists():
+        if not (self.out / "metrics.csv").exists():
             return []
-        with path.open() as f:
-            rows = list(csv.DictReader(f))
+        rows = read_metrics(self.out)
         if upto_step is not None:
             rows = [r for r in rows if int(r["step"]) <= upto_step]
         return rows
