@@ -54,31 +54,42 @@ def _row(base: dict, h_lo, h_hi, length) -> dict:
 # ---------------------------------------------------------------------------------------- dual
 
 
-def _dual_sweep(
-    figure: str, category: str, x_name: str, x: np.ndarray, fixed: dict, label: str
+def _sweep(
+    model, region_fn, key: tuple[str, object], figure: str, x_name: str, x, fixed: dict, label: str
 ) -> tuple[tuple[str, np.ndarray, np.ndarray], list[dict]]:
-    kw = {**dual.DEFAULTS, **fixed}
-    args = dict(kw)
-    args[x_name] = x
+    """One curve of a region figure: ``region_fn`` of ``model`` (dual or rect) swept over ``x``.
+
+    ``key`` names the contact state (dual "category" or rect "case") and its value; every
+    other argument takes ``model.DEFAULTS`` overridden by ``fixed``. Returns the curve
+    (label, h_lo, h_hi) and one CSV row per point.
+    """
+    kw = {**model.DEFAULTS, **fixed}
+    args = {**kw, x_name: x}
     L_C = args.pop("L_C_mm")
-    reg = dual.two_point_region(dual.FIGURE_PRESET, category, L_C, **args)
+    reg = region_fn(model.FIGURE_PRESET, key[1], L_C, **args)
     lo, hi, ln = (np.broadcast_to(a, x.shape) for a in (reg.h_lo, reg.h_hi, reg.length))
     rows = []
-    xs = x
     for i in range(x.size):
         vals = {
-            k: (float(xs.flat[i]) if k == x_name else float(np.asarray(v)))
+            k: (float(x.flat[i]) if k == x_name else float(np.asarray(v)))
             for k, v in {**kw, x_name: x}.items()
         }
         base = {
             "figure": figure,
-            "geometry": dual.FIGURE_PRESET,
-            "category": category,
+            "geometry": model.FIGURE_PRESET,
+            key[0]: key[1],
             "curve": label,
             **{k: round(v, 9) for k, v in vals.items()},
         }
         rows.append(_row(base, lo.flat[i], hi.flat[i], ln.flat[i]))
     return (label, lo, hi), rows
+
+
+def _dual_sweep(figure: str, category: str, x_name: str, x, fixed: dict, label: str):
+    """A dual-peg two-point-contact region (Figs 2.11-2.18) of state ``category``."""
+    return _sweep(
+        dual, dual.two_point_region, ("category", category), figure, x_name, x, fixed, label
+    )
 
 
 def _dual_2_11():
@@ -158,29 +169,9 @@ def _dual_2_16_18():
 # ---------------------------------------------------------------------------------------- rect
 
 
-def _rect_sweep(figure: str, case: int, x_name: str, x: np.ndarray, fixed: dict, label: str):
-    kw = {**rect.DEFAULTS, **fixed}
-    args = dict(kw)
-    args[x_name] = x
-    L_C = args.pop("L_C_mm")
-    reg = rect.two_contact_region(rect.FIGURE_PRESET, case, L_C, **args)
-    lo, hi, ln = (np.broadcast_to(a, x.shape) for a in (reg.h_lo, reg.h_hi, reg.length))
-    rows = []
-    xs = x
-    for i in range(x.size):
-        vals = {
-            k: (float(xs.flat[i]) if k == x_name else float(np.asarray(v)))
-            for k, v in {**kw, x_name: x}.items()
-        }
-        base = {
-            "figure": figure,
-            "geometry": rect.FIGURE_PRESET,
-            "case": case,
-            "curve": label,
-            **{k: round(v, 9) for k, v in vals.items()},
-        }
-        rows.append(_row(base, lo.flat[i], hi.flat[i], ln.flat[i]))
-    return (label, lo, hi), rows
+def _rect_sweep(figure: str, case: int, x_name: str, x, fixed: dict, label: str):
+    """A rectangular-peg two-contact region (Figs 3.12-3.42) of ``case``."""
+    return _sweep(rect, rect.two_contact_region, ("case", case), figure, x_name, x, fixed, label)
 
 
 def _rect_3_12():
