@@ -310,8 +310,8 @@ def two_point_region(
         )
     inside = pos & (breaks[..., 1:] > breaks[..., :-1])
 
-    def to_h(s):
-        return depth_from_s(pair_e, s, exact=refine)
+    def to_h(s):  # a depth above the mouth (h < 0: tiny s, small-angle map) is the mouth
+        return np.maximum(depth_from_s(pair_e, s, exact=refine), 0.0)
 
     h_lo, h_hi, length_h = _intervals_from_breaks(breaks, inside, to_h)
     r1, r2 = quadratic_roots(*qb)
