@@ -63,16 +63,15 @@ def _sweep(
     other argument takes ``model.DEFAULTS`` overridden by ``fixed``. Returns the curve
     (label, h_lo, h_hi) and one CSV row per point.
     """
-    kw = {**model.DEFAULTS, **fixed}
-    args = {**kw, x_name: x}
+    point = {**model.DEFAULTS, **fixed, x_name: x}  # every argument, x swept
+    args = dict(point)
     L_C = args.pop("L_C_mm")
     reg = region_fn(model.FIGURE_PRESET, key[1], L_C, **args)
     lo, hi, ln = (np.broadcast_to(a, x.shape) for a in (reg.h_lo, reg.h_hi, reg.length))
     rows = []
     for i in range(x.size):
         vals = {
-            k: (float(x.flat[i]) if k == x_name else float(np.asarray(v)))
-            for k, v in {**kw, x_name: x}.items()
+            k: (float(x.flat[i]) if k == x_name else float(np.asarray(v))) for k, v in point.items()
         }
         base = {
             "figure": figure,
