@@ -168,13 +168,27 @@ def test_reward_terms_signs_and_scales():
     assert float(reward_terms(0.0, 0.0, 0.0, 0.0, 1.0, rc)["end"]) == -1.0
     stiffer = reward_terms(0.0, 0.0, 1000.0, 0.0, 0.0, rc)["stiffness"]
     assert float(stiffer) < float(t["stiffness"]) < 0
+    # the K_theta term is not in eq (4.4): zero at the default weight, linear when set
+    assert float(reward_terms(0.0, 0.0, 0.0, 0.0, 0.0, rc, 300.0)["rot_stiffness"]) == 0.0
+    rc_rot = envs.get_default_config("DualExtract").reward_config
+    rc_rot.w_stf_rot = 0.5
+    stiff_rot = reward_terms(0.0, 0.0, 0.0, 0.0, 0.0, rc_rot, 300.0)["rot_stiffness"]
+    soft_rot = reward_terms(0.0, 0.0, 0.0, 0.0, 0.0, rc_rot, 30.0)["rot_stiffness"]
+    assert float(stiff_rot) == pytest.approx(-0.5) and float(soft_rot) == pytest.approx(-0.05)
+    # so is the extraction-force term: -w_fz |f_z| / 1 N, either sign of f_z
+    assert float(reward_terms(0.0, 0.0, 0.0, 0.0, 0.0, rc, 0.0, 3.0)["extraction_force"]) == 0.0
+    rc_rot.w_fz = 2.0
+    for fz in (0.25, -0.25):
+        t_fz = reward_terms(0.0, 0.0, 0.0, 0.0, 0.0, rc_rot, 0.0, fz)["extraction_force"]
+        assert float(t_fz) == pytest.approx(-0.5)
 
 
 def test_step_logs_named_reward_terms_that_sum_to_the_reward(rect):
     s = rect.reset(rect.keys(3))
     s = rect.step(s, jnp.tile(jnp.array([0, 0, 0.5, 0, 0, 0.0]), (N_WORLDS, 1)))
     terms = sum(
-        np.asarray(s.metrics[f"reward/{k}"]) for k in ("progress", "force", "stiffness", "end")
+        np.asarray(s.metrics[f"reward/{k}"])
+        for k in ("progress", "force", "stiffness", "rot_stiffness", "extraction_force", "end")
     )
     np.testing.assert_allclose(terms, np.asarray(s.reward), rtol=1e-6)
     assert (np.asarray(s.metrics["reward/progress"]) > 0).all()  # pulled up 2 mm commanded

@@ -1,7 +1,7 @@
 """Publish a training run's policy as a pretrained policy inside the package.
 
     python train/publish_policy.py RUN_DIR rect [--checkpoint best|final|STEP] [--episodes 256]
-                                                [--screen 256]
+                                                [--screen 256] [--batch 256 --parts DIR]
 
 copies the chosen policy into ``peghole_mjx/policies/<name>_extract/`` with the run's
 ``metrics.csv``, ``curves.png`` and ``summary.json``, then evaluates it against the scripted
@@ -107,6 +107,12 @@ def main() -> int:
     ap.add_argument("--checkpoint", default="best", help="best | final | an env-step count")
     ap.add_argument("--episodes", type=int, default=256)
     ap.add_argument("--seed", type=int, default=0)
+    ap.add_argument("--batch", type=int, help="evaluate at most this many episodes at once")
+    ap.add_argument(
+        "--parts",
+        type=Path,
+        help="keep finished evaluation batches here (peghole evaluate --parts)",
+    )
     ap.add_argument("--screen", type=int, default=0, help="screening episodes (0: no screening)")
     ap.add_argument(
         "--candidates", type=int, nargs="+", help="with --screen: screen these steps only"
@@ -135,7 +141,7 @@ def main() -> int:
         from peghole_mjx.training.plots import plot_curves
 
         plot_curves([args.run], dest / "curves.png")
-    res = evaluate(args.name, args.episodes, seed=args.seed)
+    res = evaluate(args.name, args.episodes, seed=args.seed, batch=args.batch, parts_dir=args.parts)
     (dest / "evaluation.json").write_text(json.dumps(res, indent=2) + "\n")
     print(json.dumps({"selection": selection, "force_reduction_pct": res["force_reduction_pct"]}))
     print(dest)

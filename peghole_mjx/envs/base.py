@@ -86,6 +86,15 @@ def base_config(preset: str) -> config_dict.ConfigDict:
             **REWARD_WEIGHTS,
             force_scale_N=LIMITS.max_force_N[0],  # |f_xy| is measured in units of this
             stiffness_scale_N_m=1000.0,  # ||k_xy|| is measured in N/mm
+            # not in eq (4.4): the stiffness term extended to K_theta, for the K_theta compliance
+            # strategy (our extension). 0 = the thesis's reward; DualExtract's training profiles
+            # set it (train/configs/DualExtract.json; docs/training.md, "Rotational stiffness term")
+            w_stf_rot=0.0,
+            rot_stiffness_scale_Nm_rad=GAINS.rotational_stiffness_Nm_rad,
+            # not in eq (4.4) either: a penalty on the extraction force |f_z| itself, the
+            # quantity of R3 (eq 4.4 only penalises |f_xy|). 0 = the thesis's reward
+            w_fz=0.0,
+            fz_scale_N=1.0,
         ),
         success_margin_mm=5.0,  # success when the tip is this far above the mouth
         # jamming: the lateral contact force at the controller's threshold (20 N, E11; 90 %
@@ -131,17 +140,23 @@ def contact_overflow(data) -> jax.Array:
     return jnp.any(hit).astype(jnp.float32)
 
 
-def reward_terms(dz_mm, fxy_N, k_xy_N_m, success, failure, rc) -> dict[str, jax.Array]:
+def reward_terms(
+    dz_mm, fxy_N, k_xy_N_m, success, failure, rc, k_rot_Nm_rad=0.0, fz_N=0.0
+) -> dict[str, jax.Array]:
     """The named reward terms of eq (4.4) (Table 4.1 weights in ``rc``).
 
     ``dz_mm``: change of tip depth this step (negative when the peg comes out);
     ``fxy_N``: lateral contact force; ``k_xy_N_m``: lateral stiffness (both axes equal, so
-    ``||k_xy|| = sqrt(2) k``); ``success``/``failure``: 0 or 1.
+    ``||k_xy|| = sqrt(2) k``); ``success``/``failure``: 0 or 1. Two terms are not in
+    eq (4.4) and are zero at their default weights: ``rot_stiffness``
+    ``-w_stf_rot K_theta / 300 N m/rad`` and ``extraction_force`` ``-w_fz |f_z| / fz_scale_N``.
     """
     return {
         "progress": -rc.w_d * dz_mm,
         "force": -rc.w_f * fxy_N / rc.force_scale_N,
         "stiffness": -rc.w_stf * jnp.sqrt(2.0) * jnp.abs(k_xy_N_m) / rc.stiffness_scale_N_m,
+        "rot_stiffness": -rc.w_stf_rot * jnp.abs(k_rot_Nm_rad) / rc.rot_stiffness_scale_Nm_rad,
+        "extraction_force": -rc.w_fz * jnp.abs(fz_N) / rc.fz_scale_N,
         "end": rc.r_success * success + rc.r_failure * failure,
     }
 
@@ -191,6 +206,8 @@ class PegHoleEnv:
     | progress | ``-w_d dz`` with dz = change of tip depth in mm (pulling out is positive) |
     | force | ``-w_f ||f_xy|| / 20 N`` |
     | stiffness | ``-w_stf ||k_xy|| / (1000 N/m)`` (k_xy in N/mm) |
+    | rot_stiffness | ``-w_stf_rot K_theta / (300 N m/rad)``: not in eq 4.4, 0 by default |
+    | extraction_force | ``-w_fz |f_z| / 1 N``: not in eq 4.4, 0 by default |
     | end | ``+1`` on success, ``-1`` on failure (jamming, NaN, time limit) |
     """
 
@@ -397,6 +414,8 @@ class PegHoleEnv:
             "reward/progress",
             "reward/force",
             "reward/stiffness",
+            "reward/rot_stiffness",
+            "reward/extraction_force",
             "reward/end",
             "success",
             "failure",
@@ -547,7 +566,7 @@ class PegHoleEnv:
         failure = failure * (1.0 - success)
         done = jnp.maximum(success, failure)
 
-        terms = reward_terms(dz, fxy, k_xy, success, failure, rc)
+        terms = reward_terms(dz, fxy, k_xy, success, failure, rc, k_rot, fz)
         terms["progress"] = jnp.where(finite, terms["progress"], 0.0)
         reward = sum(terms.values())
 

@@ -17,6 +17,7 @@ import sys
 import time
 from collections.abc import Callable
 from dataclasses import asdict, dataclass
+from pathlib import Path
 from typing import Any
 
 import jax
@@ -191,18 +192,76 @@ def rollout(
     progress: bool = True,
     params: Any = None,
     gamma: float = 0.99,
+    batch: int | None = None,
+    parts_dir: str | Path | None = None,
 ) -> RolloutResult:
-    """Run ``episodes`` episodes in one batch until each is done (success or failure).
+    """Run ``episodes`` episodes until each is done (success or failure).
 
-    The episodes' start states depend only on ``seed`` and ``episodes``: two policies run with
-    the same seed meet the same randomised episodes. With ``params``, ``policy`` is called as
-    ``policy(params, obs, rng)``.
+    The episodes' start states depend only on ``seed``: two policies run with the same seed
+    meet the same randomised episodes, and the first n of a longer run are the n of a shorter
+    one (keys split from one seed are prefix-stable with JAX's partitionable threefry). With
+    ``params``, ``policy`` is called as ``policy(params, obs, rng)``.
+
+    ``batch``: run at most this many worlds at once (slices of the same start states; one
+    compiled shape). ``parts_dir``: save each finished slice there and load the slices already
+    saved, so an interrupted long evaluation continues where it stopped (the caller keys the
+    folder to the policy, env, seed and episode count).
     """
-    reset, run = make_runner(env, policy, chunk, params is not None, gamma)
+    if not jax.config.jax_threefry_partitionable:
+        raise RuntimeError("rollout needs jax_threefry_partitionable=True (prefix-stable keys)")
+    batch = episodes if batch is None else max(1, min(batch, episodes))
     rng = jax.random.PRNGKey(seed)
     rng, key = jax.random.split(rng)
+    reset_keys = jax.random.split(key, episodes)
+    parts = Path(parts_dir) if parts_dir is not None else None
+    if parts is not None:
+        parts.mkdir(parents=True, exist_ok=True)
+    records, compile_s, run_s, env_steps = [], 0.0, 0.0, 0
+    for start in range(0, episodes, batch):
+        n = min(batch, episodes - start)
+        saved = parts / f"episodes_{start:07d}_{n:07d}.npz" if parts is not None else None
+        if saved is not None and saved.exists():
+            with np.load(saved) as z:
+                records.append({k: z[k] for k in z.files})
+            continue
+        slice_rng = rng if start == 0 else jax.random.fold_in(rng, start)
+        keys = reset_keys[start : start + n]
+        if n < batch:  # a short last slice is padded to the compiled shape, extras dropped
+            keys = jnp.concatenate([keys, reset_keys[: batch - n]])
+        rec, c_s, r_s, steps = _rollout_slice(
+            env,
+            policy,
+            keys,
+            slice_rng,
+            chunk,
+            params,
+            gamma,
+            progress=progress,
+            desc=f"rollout {start + n}/{episodes}" if n < episodes else "rollout",
+        )
+        rec = {k: v[:n] for k, v in rec.items()}
+        records.append(rec)
+        compile_s, run_s, env_steps = compile_s + c_s, run_s + r_s, env_steps + steps
+        if saved is not None:
+            tmp = saved.with_suffix(".tmp.npz")
+            np.savez(tmp, **rec)
+            tmp.replace(saved)  # atomic: a killed run leaves no half-written slice
+    per_episode = {k: np.concatenate([r[k] for r in records]) for k in records[0]}
+    return RolloutResult(
+        per_episode=per_episode,
+        compile_s=compile_s,
+        run_s=run_s,
+        env_steps=env_steps,
+        physics_steps=env_steps * env.n_substeps,
+    )
+
+
+def _rollout_slice(env, policy, reset_keys, rng, chunk, params, gamma, progress, desc):
+    """One batch of worlds until all are done: (per-episode record, compile s, run s, steps)."""
+    episodes = reset_keys.shape[0]
+    reset, run = make_runner(env, policy, chunk, params is not None, gamma)
     t0 = time.perf_counter()
-    states, record, finished = reset(jax.random.split(key, episodes))
+    states, record, finished = reset(reset_keys)
     states, record, finished, rng = run(states, record, finished, rng, params)
     jax.block_until_ready(finished)
     compile_s = time.perf_counter() - t0  # first chunk: compile + chunk steps
@@ -213,7 +272,7 @@ def rollout(
         total=n_chunks * chunk,
         initial=chunk,
         unit="step",
-        desc="rollout",
+        desc=desc,
         file=sys.stderr,
         disable=not progress,
     )
@@ -231,10 +290,4 @@ def rollout(
     run_s = time.perf_counter() - t1
     per_episode = {k: np.asarray(v) for k, v in record[0].items()}
     timed = steps - chunk  # steps after the compiled first chunk
-    return RolloutResult(
-        per_episode=per_episode,
-        compile_s=compile_s,
-        run_s=run_s,
-        env_steps=timed * episodes,
-        physics_steps=timed * episodes * env.n_substeps,
-    )
+    return per_episode, compile_s, run_s, timed * episodes

@@ -74,6 +74,19 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     e.add_argument("--seed", type=int, default=0)
     e.add_argument("--json", action="store_true", help="print one JSON object")
     e.add_argument("--out", type=Path, help="also write the JSON object to this file")
+    e.add_argument(
+        "--batch",
+        type=int,
+        metavar="N",
+        help="run at most N episodes at once (default: all); the episodes are the same",
+    )
+    e.add_argument(
+        "--parts",
+        type=Path,
+        metavar="DIR",
+        help="save each finished batch in DIR; rerunning the same command loads them and "
+        "runs only the rest (long evaluations survive an interruption)",
+    )
     e.set_defaults(func=cmd_evaluate)
 
     c = sub.add_parser(
@@ -137,7 +150,16 @@ def cmd_evaluate(args: argparse.Namespace) -> int:
 
     if args.episodes < 1:
         raise UserInputError("--episodes must be >= 1")
-    res = evaluate(args.checkpoint, args.episodes, seed=args.seed, progress=not args.json)
+    if args.batch is not None and args.batch < 1:
+        raise UserInputError("--batch must be >= 1")
+    res = evaluate(
+        args.checkpoint,
+        args.episodes,
+        seed=args.seed,
+        progress=not args.json,
+        batch=args.batch,
+        parts_dir=args.parts,
+    )
     text = json.dumps(res, indent=None if args.json else 2, allow_nan=True)
     if args.out:
         args.out.parent.mkdir(parents=True, exist_ok=True)

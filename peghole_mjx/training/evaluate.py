@@ -8,9 +8,16 @@ reduction is ``100 (F_baseline - F_policy) / F_baseline`` on the mean extraction
 
 from __future__ import annotations
 
+import hashlib
+import json
+from pathlib import Path
 from typing import Any
 
+import jax
+import numpy as np
+
 from peghole_mjx.envs.rollout import rollout, scripted_policy
+from peghole_mjx.errors import UserInputError
 from peghole_mjx.policies import PolicyBundle, load_policy
 
 #: the thesis's headline RL numbers (Sec 4.3.2, 4.4; seed_parameters.md R3-R5)
@@ -29,6 +36,39 @@ def force_reduction_pct(policy: dict[str, Any], baseline: dict[str, Any]) -> flo
     return 100.0 * (b - policy["mean_fz_N"]) / b if b > 0 else float("nan")
 
 
+def _parts_dirs(parts_dir, bundle, env, seed, batch):
+    """(policy, baseline) slice folders under ``parts_dir``, keyed to this evaluation."""
+    if parts_dir is None:
+        return None, None
+    root = Path(parts_dir)
+    key = {
+        "policy_path": str(Path(bundle.path).resolve()),
+        "params_sha256": hashlib.sha256(
+            b"".join(np.asarray(x).tobytes() for x in jax.tree.leaves(bundle.params))
+        ).hexdigest(),
+        "env": bundle.env_name,
+        "env_config": env.config.to_json(sort_keys=True),
+        # not the episode count: slice k holds episodes [k batch, (k + 1) batch) of any longer
+        # evaluation with this seed (JAX's partitionable threefry splits keys prefix-stably),
+        # so a 256-episode evaluation's slices are reused when it is extended to 1024
+        "seed": seed,
+        "batch": batch,
+    }
+    key_file = root / "key.json"
+    if key_file.exists():
+        old = json.loads(key_file.read_text())
+        diff = sorted(k for k in key if old.get(k) != key[k])
+        if diff:
+            raise UserInputError(
+                f"{root} holds the slices of another evaluation (differs in {', '.join(diff)}); "
+                "choose another --parts folder or delete it"
+            )
+    else:
+        root.mkdir(parents=True, exist_ok=True)
+        key_file.write_text(json.dumps(key, indent=2) + "\n")
+    return root / "policy", root / "baseline"
+
+
 def evaluate(
     policy: str | PolicyBundle,
     episodes: int,
@@ -36,17 +76,25 @@ def evaluate(
     progress: bool = True,
     env_overrides: dict | None = None,
     env=None,
+    batch: int | None = None,
+    parts_dir: str | Path | None = None,
 ) -> dict[str, Any]:
     """``{"policy", "baseline", "force_reduction_pct", "episodes", ...}`` (see module doc).
 
     ``env``: an already built env of the policy's config (reuses its compiled rollouts).
+    ``batch``: worlds run at once (default: all ``episodes``). ``parts_dir``: finished slices
+    of ``batch`` episodes are saved there, and a rerun with the same policy, env, seed and
+    batch loads them (a long evaluation survives an interruption or is extended to more
+    episodes; see :func:`rollout`).
     """
     bundle = policy if isinstance(policy, PolicyBundle) else load_policy(policy)
     env = env if env is not None else bundle.make_env(env_overrides)
+    parts = _parts_dirs(parts_dir, bundle, env, seed, batch or episodes)
+    kw = dict(seed=seed, progress=progress, batch=batch)
     res_p = rollout(
-        env, bundle.policy_fn(), episodes, seed=seed, progress=progress, params=bundle.params
+        env, bundle.policy_fn(), episodes, params=bundle.params, parts_dir=parts[0], **kw
     )
-    res_b = rollout(env, scripted_policy(env), episodes, seed=seed, progress=progress)
+    res_b = rollout(env, scripted_policy(env), episodes, parts_dir=parts[1], **kw)
     pol, base = res_p.summary().as_dict(), res_b.summary().as_dict()
     return {
         "policy": pol,
