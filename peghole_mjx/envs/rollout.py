@@ -204,8 +204,9 @@ def rollout(
 
     ``batch``: run at most this many worlds at once (slices of the same start states; one
     compiled shape). ``parts_dir``: save each finished slice there and load the slices already
-    saved, so an interrupted long evaluation continues where it stopped (the caller keys the
-    folder to the policy, env, seed and episode count).
+    saved, so an interrupted long evaluation continues where it stopped or is extended (the
+    caller keys the folder to the policy, env, seed and batch; slice files are named by their
+    first episode and size).
     """
     if not jax.config.jax_threefry_partitionable:
         raise RuntimeError("rollout needs jax_threefry_partitionable=True (prefix-stable keys)")
