@@ -240,8 +240,14 @@ POLICIES = ROOT / "peghole_mjx" / "policies"
 def _eval_row(label: str, r: dict, thesis: str) -> str:
     return (
         f"| {label} | {r['success_rate']:.3f} | {_num(r['mean_time_s'], '.2f')} | "
-        f"{r['mean_fz_N']:.2f} | {r['peak_fz_N']:.2f} | {r['mean_fxy_N']:.2f} | {thesis} |"
-    )
+        f"{r['mean_fz_N']:#.3g} | {r['peak_fz_N']:#.3g} | {r['mean_fxy_N']:#.3g} | {thesis} |"
+    )  # 3 significant digits: the dual forces are hundredths of a newton
+
+
+def _batch_flag(ev: dict) -> str:
+    """``--batch N`` when the evaluation ran in slices (older files record no batch)."""
+    batch = ev.get("batch", ev["episodes"])
+    return f" --batch {batch}" if batch < ev["episodes"] else ""
 
 
 def pretrained() -> str:
@@ -264,7 +270,8 @@ def pretrained() -> str:
             f"env steps on {prov.get('device', '?')}; evaluated on {ev['episodes']} randomised "
             f"episodes, seed {ev['seed']}, from "
             f"[`{path.relative_to(ROOT)}`]({path.relative_to(ROOT)}); "
-            f"`peghole evaluate {name} --episodes {ev['episodes']} --json` reproduces it):",
+            f"`peghole evaluate {name} --episodes {ev['episodes']}{_batch_flag(ev)} --json` "
+            "reproduces it):",
             "",
             "| policy | success | mean time s | mean F_z N | peak F_z N | mean F_xy N | thesis |",
             "|---|---|---|---|---|---|---|",

@@ -97,6 +97,26 @@ def test_compliance_strategy_action_maps_onto_its_ranges_and_baseline_holds_the_
     )
 
 
+def test_feed_forward_accumulates_within_its_bounds():
+    """Feed-forward: +-max_force_step_N per step, lateral total within max_ff_xy_N, z 60 N."""
+    info = {"hole_mat": jnp.eye(3), "cmd_tip": jnp.zeros(3), "wrench_ff": jnp.zeros(3)}
+    info |= {k: jnp.float32(0.0) for k in ("k_xy", "k_rot", "L_C")}
+    a = jnp.asarray([0, 0, 0, 1, -1, 1], jnp.float32)
+
+    def total(env, steps):
+        ff = jnp.zeros(3)
+        for _ in range(steps):
+            _, ff, *_ = env._decode_action(a, {**info, "wrench_ff": ff})
+        return np.asarray(ff)
+
+    default = envs.load("RectExtract")
+    step = default.config.action.max_force_step_N
+    np.testing.assert_allclose(total(default, 1), (step, -step, step))
+    np.testing.assert_allclose(total(default, 40), (20.0, -20.0, 60.0))  # E11's force limits
+    capped = envs.load("RectExtract", config_overrides={"action.max_ff_xy_N": 3.0})
+    np.testing.assert_allclose(total(capped, 40), (3.0, -3.0, 60.0))  # z keeps its 60 N
+
+
 @pytest.mark.slow
 def test_random_actions_200_steps_no_nan_and_determinism(compiled):
     env = compiled.env

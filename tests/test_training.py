@@ -109,6 +109,7 @@ def test_evaluate_runs_policy_and_baseline_on_same_episodes(trained):
     run, _ = trained
     res = evaluate(run.out / "final_policy", episodes=8, seed=1, progress=False, env=run.env)
     assert set(res) >= {"policy", "baseline", "force_reduction_pct", "episodes"}
+    assert res["batch"] == 8  # one slice of all the episodes when no batch is given
     keys = {"success_rate", "mean_time_s", "mean_fz_N", "peak_fz_N", "mean_fxy_N"}
     assert keys <= set(res["policy"]) and keys <= set(res["baseline"])
     p, b = res["policy"]["mean_fz_N"], res["baseline"]["mean_fz_N"]
@@ -158,19 +159,43 @@ def test_batched_rollout_meets_the_same_episodes_and_resumes_from_saved_parts(tr
     assert all(len(v) == 6 for v in six.values())
 
 
-def test_evaluate_parts_folder_refuses_another_evaluation(trained, tmp_path):
-    from peghole_mjx.training.evaluate import evaluate
+def test_evaluate_parts_folder_refuses_another_evaluation_and_shares_the_baseline(
+    trained, tmp_path
+):
+    from peghole_mjx.policies import load_policy
+    from peghole_mjx.training.evaluate import evaluate, params_sha256
 
     run, _ = trained
-    kw = dict(episodes=8, progress=False, env=run.env, batch=8, parts_dir=tmp_path / "ev")
-    res = evaluate(run.out / "final_policy", seed=1, **kw)
-    assert len(list((tmp_path / "ev" / "policy").glob("*.npz"))) == 1
-    assert len(list((tmp_path / "ev" / "baseline").glob("*.npz"))) == 1
-    again = evaluate(run.out / "final_policy", seed=1, **kw)  # loaded from the parts
+    ev = tmp_path / "ev"
+    kw = dict(episodes=8, progress=False, env=run.env, batch=8, parts_dir=ev)
+    final = load_policy(run.out / "final_policy")
+    res = evaluate(final, seed=1, **kw)
+    pol_dir = ev / f"policy-{params_sha256(final.params)[:12]}"
+    assert len(list(pol_dir.glob("*.npz"))) == 1
+    assert len(list((ev / "baseline").glob("*.npz"))) == 1
+    again = evaluate(final, seed=1, **kw)  # loaded from the parts
     for who in ("policy", "baseline"):
         np.testing.assert_equal(again[who], res[who])  # NaN-aware
     with pytest.raises(UserInputError, match="differs in seed"):
-        evaluate(run.out / "final_policy", seed=2, **kw)
+        evaluate(final, seed=2, **kw)
+    # another policy in the same folder, in an env that differs only in a feed-forward bound
+    # the baseline never uses: its own slices, the baseline's loaded (marked here)
+    (base_npz,) = (ev / "baseline").glob("*.npz")
+    with np.load(base_npz) as z:
+        marked = {k: z[k] for k in z.files}
+    marked["mean_fz_N"] = marked["mean_fz_N"] + 100.0
+    np.savez(base_npz, **marked)
+    ckpt = sorted((run.out / "checkpoints").glob("step_*"))[0]
+    capped = run.env.__class__(run.env.config, {"action.max_ff_xy_N": 2.0})
+    other = evaluate(ckpt, seed=1, **{**kw, "env": capped})
+    assert len(list(ev.glob("policy-*"))) == 2
+    assert other["baseline"]["mean_fz_N"] == pytest.approx(res["baseline"]["mean_fz_N"] + 100.0)
+    # a baseline-relevant env change (the pulling-speed bound) is refused for the baseline
+    slower = run.env.__class__(
+        run.env.config, {"action.max_speed_m_s": 0.5 * run.env.config.action.max_speed_m_s}
+    )
+    with pytest.raises(UserInputError, match=r"baseline holds .* \(differs in env_config\)"):
+        evaluate(final, seed=1, **{**kw, "env": slower})
 
 
 def test_publish_screening_picks_the_best_screened_checkpoint(trained):

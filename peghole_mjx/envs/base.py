@@ -63,6 +63,10 @@ def base_config(preset: str) -> config_dict.ConfigDict:
             max_step_offset_mm=LIMITS.max_step_offset_m / MM,  # |dx|, |dy| per step (Sec 4.3.1)
             max_speed_m_s=LIMITS.max_speed_m_s,  # |dz| per step = this x ctrl_dt
             max_force_step_N=2.0,  # |dF| per step
+            # bound of the accumulated lateral feed-forward |F_x|, |F_y| (the force limit of
+            # E11 by default; DualExtract's training profiles lower it: docs/training.md,
+            # "Lateral feed-forward bound")
+            max_ff_xy_N=LIMITS.max_force_N[0],
         ),
         compliance_strategy=False,  # when on, the action also sets k_xy (and K_theta, L_C)
         # with compliance_strategy: the action also sets the rotational stiffness K_theta (the
@@ -194,10 +198,12 @@ class PegHoleEnv:
     |---|---|---|
     | 0-1 | dx, dy: commanded tip offset | x 0.1 mm per step |
     | 2 | dz: commanded pull (+ = out) | x 0.1 m/s x ctrl_dt |
-    | 3-5 | dFx, dFy, dFz: feed-forward force change | x 2 N per step, total clipped to 20/20/60 N |
+    | 3-5 | dFx, dFy, dFz: feed-forward change | x 2 N per step, total within 20/20/60 N [1] |
     | 6 | k_xy (compliance_strategy) | [50, 1000] N/m |
     | 7 | K_theta (compliance_strategy and compliance_rotation) | [10, 300] N m/rad |
     | last | L_C (learn_compliance_centre) | [0, L] |
+
+    [1] the lateral total within ``action.max_ff_xy_N`` (20 N by default).
 
     Reward (eq 4.4, Table 4.1), named terms logged as ``metrics["reward/<term>"]``:
 
@@ -495,7 +501,8 @@ class PegHoleEnv:
         dxy = a[:2] * c.action.max_step_offset_mm * MM
         dz = a[2] * c.action.max_speed_m_s * c.ctrl_dt
         cmd_tip = info["cmd_tip"] + H @ jnp.array([dxy[0], dxy[1], dz])
-        cap = jnp.asarray(LIMITS.max_force_N)
+        f_max = jnp.asarray(LIMITS.max_force_N, jnp.float32)
+        cap = f_max.at[:2].set(jnp.minimum(f_max[:2], c.action.max_ff_xy_N))
         wrench_ff = jnp.clip(info["wrench_ff"] + a[3:6] * c.action.max_force_step_N, -cap, cap)
         gains = {k: info[k] for k in ("k_xy", "k_rot", "L_C")}
         for name, (i, lo, hi) in self.compliance_actions.items():  # [-1, 1] -> [lo, hi]

@@ -16,7 +16,7 @@ from typing import Any
 import jax
 import numpy as np
 
-from peghole_mjx.envs.rollout import rollout, scripted_policy
+from peghole_mjx.envs.rollout import SCRIPTED_SPEED_M_S, rollout, scripted_policy
 from peghole_mjx.errors import UserInputError
 from peghole_mjx.policies import PolicyBundle, load_policy
 
@@ -36,28 +36,34 @@ def force_reduction_pct(policy: dict[str, Any], baseline: dict[str, Any]) -> flo
     return 100.0 * (b - policy["mean_fz_N"]) / b if b > 0 else float("nan")
 
 
-def _parts_dirs(parts_dir, bundle, env, seed, batch):
-    """(policy, baseline) slice folders under ``parts_dir``, keyed to this evaluation."""
-    if parts_dir is None:
-        return None, None
-    root = Path(parts_dir)
-    key = {
-        "policy_path": str(Path(bundle.path).resolve()),
-        "params_sha256": hashlib.sha256(
-            b"".join(np.asarray(x).tobytes() for x in jax.tree.leaves(bundle.params))
-        ).hexdigest(),
-        "env": bundle.env_name,
-        "env_config": env.config.to_json(sort_keys=True),
-        # not the episode count: slice k holds episodes [k batch, (k + 1) batch) of any longer
-        # evaluation with this seed (JAX's partitionable threefry splits keys prefix-stably),
-        # so a 256-episode evaluation's slices are reused when it is extended to 1024
-        "seed": seed,
-        "batch": batch,
-    }
+#: env-config entries that cannot change a scripted-baseline episode: its lateral offset and
+#: feed-forward actions are 0, so the commanded offset stays 0 and the feed-forward stays 0
+#: whatever their step sizes and bounds. Left out of the baseline's slice key, so policies
+#: trained with different feed-forward settings share one baseline (same episodes).
+BASELINE_IGNORED_CONFIG = (
+    "action.max_step_offset_mm",
+    "action.max_force_step_N",
+    "action.max_ff_xy_N",
+)
+
+
+def _config_key(env, ignored=()) -> str:
+    cfg = json.loads(env.config.to_json())
+    for dotted in ignored:
+        *path, leaf = dotted.split(".")
+        node = cfg
+        for k in path:
+            node = node.get(k, {})
+        node.pop(leaf, None)
+    return json.dumps(cfg, sort_keys=True)
+
+
+def _keyed_dir(root: Path, key: dict[str, Any]) -> Path:
+    """``root`` with its ``key.json``; raises if the folder holds another evaluation's slices."""
     key_file = root / "key.json"
     if key_file.exists():
         old = json.loads(key_file.read_text())
-        diff = sorted(k for k in key if old.get(k) != key[k])
+        diff = sorted(k for k in key.keys() | old.keys() if old.get(k) != key.get(k))
         if diff:
             raise UserInputError(
                 f"{root} holds the slices of another evaluation (differs in {', '.join(diff)}); "
@@ -66,7 +72,42 @@ def _parts_dirs(parts_dir, bundle, env, seed, batch):
     else:
         root.mkdir(parents=True, exist_ok=True)
         key_file.write_text(json.dumps(key, indent=2) + "\n")
-    return root / "policy", root / "baseline"
+    return root
+
+
+def params_sha256(params) -> str:
+    """Digest of a policy's parameters (names its slice folder)."""
+    return hashlib.sha256(
+        b"".join(np.asarray(x).tobytes() for x in jax.tree.leaves(params))
+    ).hexdigest()
+
+
+def _parts_dirs(parts_dir, bundle, env, seed, batch):
+    """(policy, baseline) slice folders under ``parts_dir``, each keyed by its ``key.json``.
+
+    ``policy-<sha256[:12]>/``: one per policy parameters; ``baseline/``: shared by every policy
+    evaluated in this folder whose env differs at most in :data:`BASELINE_IGNORED_CONFIG`.
+    Not the episode count: slice k holds episodes [k batch, (k + 1) batch) of any evaluation
+    with this seed (JAX's partitionable threefry splits keys prefix-stably), so a 256-episode
+    evaluation's slices are reused when it is extended to 1024.
+    """
+    if parts_dir is None:
+        return None, None
+    root = Path(parts_dir)
+    episodes_key = {"env": bundle.env_name, "seed": seed, "batch": batch}
+    sha = params_sha256(bundle.params)
+    policy_key = {  # by parameters, not path: a published copy of a checkpoint reuses its slices
+        "params_sha256": sha,
+        **episodes_key,
+        "env_config": _config_key(env),
+    }
+    baseline_key = {
+        **episodes_key,
+        "env_config": _config_key(env, BASELINE_IGNORED_CONFIG),
+        "speed_m_s": SCRIPTED_SPEED_M_S,
+    }
+    baseline_dir = _keyed_dir(root / "baseline", baseline_key)
+    return _keyed_dir(root / f"policy-{sha[:12]}", policy_key), baseline_dir
 
 
 def evaluate(
@@ -85,7 +126,8 @@ def evaluate(
     ``batch``: worlds run at once (default: all ``episodes``). ``parts_dir``: finished slices
     of ``batch`` episodes are saved there, and a rerun with the same policy, env, seed and
     batch loads them (a long evaluation survives an interruption or is extended to more
-    episodes; see :func:`rollout`).
+    episodes; see :func:`rollout`); another policy evaluated in the same folder reuses the
+    baseline's slices (:func:`_parts_dirs`).
     """
     bundle = policy if isinstance(policy, PolicyBundle) else load_policy(policy)
     env = env if env is not None else bundle.make_env(env_overrides)
@@ -101,6 +143,7 @@ def evaluate(
         "baseline": base,
         "force_reduction_pct": force_reduction_pct(pol, base),
         "episodes": episodes,
+        "batch": batch or episodes,  # episodes per slice: numbers differ ~2 % between batches
         "seed": seed,
         "env": bundle.env_name,
         "preset": env.config.preset,
