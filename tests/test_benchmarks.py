@@ -15,6 +15,7 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT / "benchmarks"))
 
 import bench_common  # noqa: E402
+import paired_reduction  # noqa: E402
 import plot  # noqa: E402
 import readme_tables  # noqa: E402
 import rl_vs_rlcs  # noqa: E402
@@ -359,3 +360,21 @@ def test_rl_vs_rlcs_verdict_and_bad_input(tmp_path):
     swapped = ["--cs", str(tmp_path / "rl"), "--no-cs", str(tmp_path / "cs"), "--results", str(out)]
     with pytest.raises(SystemExit, match="CS on"):
         rl_vs_rlcs.main(swapped)
+
+
+def test_committed_dual_per_episode_file_matches_the_published_evaluation():
+    """The per-episode CSV behind the README's held-out and bootstrap figures is the published
+    dual evaluation's episodes, and its committed analysis is reproduced from it."""
+    res = ROOT / "benchmarks" / "results" / "dual_ffcap_cpu-2core"
+    ev = json.loads((ROOT / "peghole_mjx/policies/dual_extract/evaluation.json").read_text())
+    got = paired_reduction.analyse(res / "episodes1024.csv", chosen_on=64)
+    assert got["episodes"] == ev["episodes"]
+    assert got["policy_mean_fz_N"] == pytest.approx(ev["policy"]["mean_fz_N"], rel=1e-5)
+    assert got["baseline_mean_fz_N"] == pytest.approx(ev["baseline"]["mean_fz_N"], rel=1e-5)
+    assert got["reduction_pct"] == pytest.approx(ev["force_reduction_pct"], abs=1e-3)
+    committed = json.loads((res / "paired1024.json").read_text())
+    for k in ("reduction_pct_not_chosen_on", "share_of_episodes_policy_lower"):
+        assert got[k] == pytest.approx(committed[k])
+    assert got["bootstrap"] == committed["bootstrap"]  # fixed resampling seed
+    lo, hi = got["bootstrap"]["reduction_pct_95"]
+    assert lo < got["reduction_pct"] < hi

@@ -501,8 +501,9 @@ class PegHoleEnv:
         dxy = a[:2] * c.action.max_step_offset_mm * MM
         dz = a[2] * c.action.max_speed_m_s * c.ctrl_dt
         cmd_tip = info["cmd_tip"] + H @ jnp.array([dxy[0], dxy[1], dz])
-        f_max = jnp.asarray(LIMITS.max_force_N, jnp.float32)
-        cap = f_max.at[:2].set(jnp.minimum(f_max[:2], c.action.max_ff_xy_N))
+        fx, fy, fz = LIMITS.max_force_N  # E11; the lateral ones lowered to max_ff_xy_N
+        ff_xy = c.action.max_ff_xy_N
+        cap = jnp.asarray((min(fx, ff_xy), min(fy, ff_xy), fz), jnp.float32)
         wrench_ff = jnp.clip(info["wrench_ff"] + a[3:6] * c.action.max_force_step_N, -cap, cap)
         gains = {k: info[k] for k in ("k_xy", "k_rot", "L_C")}
         for name, (i, lo, hi) in self.compliance_actions.items():  # [-1, 1] -> [lo, hi]

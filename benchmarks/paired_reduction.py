@@ -1,0 +1,116 @@
+"""Per-episode comparison of a policy with the scripted baseline on the same episodes.
+
+    python benchmarks/paired_reduction.py export POLICY_PARTS BASELINE_PARTS --out EPISODES.csv
+    python benchmarks/paired_reduction.py analyse EPISODES.csv --chosen-on 64 --out PAIRED.json
+
+``export`` writes the per-episode records that ``peghole evaluate --parts DIR`` saved
+(``DIR/policy-<sha>/`` and ``DIR/baseline/``) as one CSV row per episode. ``analyse`` gives
+the mean-|F_z| reduction (the thesis's R3 measure, as ``peghole evaluate``) over all episodes,
+per slice, on the episodes not used to choose the policy (``--chosen-on N``: episodes 0 to
+N-1 of this seed were), a paired bootstrap interval (episodes resampled, policy and baseline
+together) and the share of episodes where the policy's mean |F_z| is the lower.
+"""
+
+from __future__ import annotations
+
+import argparse
+import csv
+import datetime as dt
+import json
+from pathlib import Path
+
+import numpy as np
+
+COLUMNS = ("success", "extraction_time_s", "mean_fz_N", "peak_fz_N", "mean_fxy_N")
+BOOTSTRAP_RESAMPLES = 10_000
+BOOTSTRAP_SEED = 0
+
+
+def load_parts(folder: Path) -> dict[str, np.ndarray]:
+    """The episodes of a ``--parts`` slice folder, in episode order."""
+    files = sorted(Path(folder).glob("episodes_*.npz"))  # named by first episode, zero-padded
+    if not files:
+        raise SystemExit(f"{folder} holds no episodes_*.npz slices")
+    loaded = [np.load(f) for f in files]
+    return {k: np.concatenate([z[k] for z in loaded]) for k in COLUMNS}
+
+
+def export(policy_dir: Path, baseline_dir: Path, out: Path) -> None:
+    """One CSV row per episode: ``policy_<column>`` and ``baseline_<column>``."""
+    pol, base = load_parts(policy_dir), load_parts(baseline_dir)
+    n = len(pol["mean_fz_N"])
+    if len(base["mean_fz_N"]) != n:
+        raise SystemExit(f"{n} policy episodes but {len(base['mean_fz_N'])} baseline episodes")
+    with open(out, "w", newline="") as f:
+        w = csv.writer(f)
+        w.writerow(
+            ["episode", *(f"policy_{c}" for c in COLUMNS), *(f"baseline_{c}" for c in COLUMNS)]
+        )
+        for i in range(n):
+            w.writerow([i, *(pol[c][i] for c in COLUMNS), *(base[c][i] for c in COLUMNS)])
+
+
+def reduction_pct(policy_fz: np.ndarray, baseline_fz: np.ndarray) -> float:
+    """Mean-|F_z| reduction of the policy vs the baseline, % (peghole evaluate's measure)."""
+    b = baseline_fz.mean()
+    return float(100.0 * (b - policy_fz.mean()) / b)
+
+
+def analyse(
+    episodes_csv: Path, chosen_on: int = 0, slice_size: int = 256, evaluated_on: str = ""
+) -> dict:
+    """The reductions of the module docstring from an ``export`` CSV."""
+    with open(episodes_csv) as f:
+        rows = list(csv.DictReader(f))
+    p = np.array([float(r["policy_mean_fz_N"]) for r in rows])
+    b = np.array([float(r["baseline_mean_fz_N"]) for r in rows])
+    n = len(p)
+    idx = np.random.default_rng(BOOTSTRAP_SEED).integers(0, n, (BOOTSTRAP_RESAMPLES, n))
+    boot = 100.0 * (1.0 - p[idx].mean(1) / b[idx].mean(1))
+    slices = range(0, n, slice_size)
+    return {
+        "episodes_csv": episodes_csv.name,
+        "episodes": n,
+        "policy_mean_fz_N": float(p.mean()),
+        "baseline_mean_fz_N": float(b.mean()),
+        "reduction_pct": reduction_pct(p, b),
+        f"reduction_pct_per_{slice_size}": [
+            reduction_pct(p[s : s + slice_size], b[s : s + slice_size]) for s in slices
+        ],
+        "chosen_on_episodes": chosen_on,
+        "reduction_pct_not_chosen_on": reduction_pct(p[chosen_on:], b[chosen_on:]),
+        "bootstrap": {
+            "resamples": BOOTSTRAP_RESAMPLES,
+            "seed": BOOTSTRAP_SEED,
+            "reduction_pct_95": [float(x) for x in np.percentile(boot, [2.5, 97.5])],
+        },
+        "share_of_episodes_policy_lower": float((p < b).mean()),
+        "evaluated_on": evaluated_on,  # the device of the rollouts (this analysis is NumPy)
+        "date": dt.datetime.now(dt.UTC).strftime("%Y-%m-%dT%H:%M:%SZ"),
+    }
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    sub = ap.add_subparsers(dest="cmd", required=True)
+    ex = sub.add_parser("export", help="per-episode CSV from --parts slice folders")
+    ex.add_argument("policy_dir", type=Path)
+    ex.add_argument("baseline_dir", type=Path)
+    ex.add_argument("--out", type=Path, required=True)
+    an = sub.add_parser("analyse", help="reductions, bootstrap interval, per-episode share")
+    an.add_argument("episodes_csv", type=Path)
+    an.add_argument("--chosen-on", type=int, default=0, help="episodes used to choose the policy")
+    an.add_argument("--slice", type=int, default=256)
+    an.add_argument("--evaluated-on", default="", help="device of the evaluation's rollouts")
+    an.add_argument("--out", type=Path, required=True)
+    args = ap.parse_args()
+    if args.cmd == "export":
+        export(args.policy_dir, args.baseline_dir, args.out)
+    else:
+        res = analyse(args.episodes_csv, args.chosen_on, args.slice, args.evaluated_on)
+        args.out.write_text(json.dumps(res, indent=2) + "\n")
+        print(json.dumps(res, indent=2))
+
+
+if __name__ == "__main__":
+    main()
