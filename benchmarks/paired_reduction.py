@@ -4,7 +4,7 @@
     python benchmarks/paired_reduction.py analyse EPISODES.csv --chosen-on 64 --out PAIRED.json
 
 ``export`` writes the per-episode records that ``peghole evaluate --parts DIR`` saved
-(``DIR/policy-<sha>/`` and ``DIR/baseline/``) as one CSV row per episode. ``analyse`` gives
+(``DIR/policy-<sha>-<cfg>/`` and ``DIR/baseline/``) as one CSV row per episode. ``analyse`` gives
 the mean-|F_z| reduction (the thesis's R3 measure, as ``peghole evaluate``) over all episodes,
 per slice, on the episodes not used to choose the policy (``--chosen-on N``: episodes 0 to
 N-1 of this seed were), a paired bootstrap interval (episodes resampled, policy and baseline

@@ -291,6 +291,7 @@ def test_cli_rollout_bad_input():
         (["--env", "RectExtract", "--policy", "nope.ckpt"], "no policy at nope.ckpt"),
         (["--env", "RectExtract", "--episodes", "0"], "--episodes"),
         (["--env", "RectExtract", "--preset", "dual-1"], "does not fit"),
+        (["--env", "RectExtract", "--set", "action.nope=1"], "action has no 'nope'"),
     ):
         res = subprocess.run(
             [sys.executable, "-m", "peghole_mjx.cli", "envs", "rollout", *args],
@@ -336,3 +337,14 @@ def test_warp_contact_buffer_overflow_ends_the_episode_and_is_counted():
     s = res.summary()
     assert s.overflow_worlds > 0
     assert s.success_rate < 1.0
+
+
+def test_unknown_config_override_key_is_refused_by_name():
+    """A typo in a flat override (``--set env.KEY=...``) is an error, not a silently new key."""
+    for key, msg in (
+        ("action.max_ff_xy", "action has no 'max_ff_xy'"),
+        ("episode_lenght", "the env config has no 'episode_lenght'"),
+        ("episode_length.steps", "episode_length has no 'steps'"),
+    ):
+        with pytest.raises(UserInputError, match=msg):
+            envs.load("DualExtract", config_overrides={key: 1})

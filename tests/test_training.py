@@ -170,7 +170,7 @@ def test_evaluate_parts_folder_refuses_another_evaluation_and_shares_the_baselin
     kw = dict(episodes=8, progress=False, env=run.env, batch=8, parts_dir=ev)
     final = load_policy(run.out / "final_policy")
     res = evaluate(final, seed=1, **kw)
-    pol_dir = ev / f"policy-{params_sha256(final.params)[:12]}"
+    (pol_dir,) = ev.glob(f"policy-{params_sha256(final.params)[:12]}-*")
     assert len(list(pol_dir.glob("*.npz"))) == 1
     assert len(list((ev / "baseline").glob("*.npz"))) == 1
     again = evaluate(final, seed=1, **kw)  # loaded from the parts
@@ -213,6 +213,29 @@ def test_publish_screening_picks_the_best_screened_checkpoint(trained):
     assert str(SCREEN_SEED) in sel["rule"]
     with pytest.raises(SystemExit, match="none of the checkpoints"):
         screen_checkpoints(run.out, 4, candidates=[123])
+
+
+def test_publish_deployment_overrides_change_the_env_and_keep_the_trained_values(trained):
+    """publish_policy.py --deploy-set: the policy's env changes, the record says from what."""
+    sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "train"))
+    from publish_policy import deployment_overrides
+
+    from peghole_mjx.policies import PolicyBundle, load_policy
+
+    run, _ = trained
+    final = load_policy(run.out / "final_policy")
+    meta = json.loads(json.dumps(final.meta))
+    trained_cfg = dict(meta["train_config"])
+    record = deployment_overrides(meta, {"action.max_ff_xy_N": 0.5})
+    assert record == {
+        "env_overrides": {"action.max_ff_xy_N": 0.5},
+        "trained_with": {"action.max_ff_xy_N": "env default"},
+    }
+    assert meta["deployment"] == record and meta["train_config"] == trained_cfg
+    env = PolicyBundle(final.path, meta, final.params).make_env()
+    assert env.config.action.max_ff_xy_N == 0.5
+    with pytest.raises(UserInputError, match="action has no 'max_ff'"):
+        deployment_overrides(meta, {"action.max_ff": 0.5})
 
 
 def _peghole(*args):

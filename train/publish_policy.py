@@ -2,6 +2,7 @@
 
     python train/publish_policy.py RUN_DIR rect [--checkpoint best|final|STEP] [--episodes 256]
                                                 [--screen 256] [--batch 256 --parts DIR]
+                                                [--deploy-set KEY=VALUE ...]
 
 copies the chosen policy into ``peghole_mjx/policies/<name>_extract/`` with the run's
 ``metrics.csv``, ``curves.png`` and ``summary.json``, then evaluates it against the scripted
@@ -16,6 +17,12 @@ training evaluations put near the top (success within 0.1 of the best) by the sa
 episodes of the policy alone (seed 20000; the training evaluations have only ``num_eval_envs``
 episodes each, too few to tell 97 % from 99 % success). The choice is recorded in
 ``policy.json`` (``selection``). ``--candidates STEP ...`` screens those checkpoints only.
+
+``--deploy-set KEY=VALUE`` (env config keys, as ``peghole train --set env.KEY=VALUE``) changes
+the env the published policy runs in from the one it was trained in, e.g. a tighter force
+bound at deployment. The policy's ``env_overrides`` get the new values, and
+``policy.json``'s ``deployment`` records them beside the trained values they replace (the
+training config itself, ``train_config``, is left as trained).
 """
 
 from __future__ import annotations
@@ -24,6 +31,8 @@ import argparse
 import json
 import shutil
 from pathlib import Path
+
+from peghole_mjx.envs.cli import _override
 
 SCREEN_SEED = 20000  # screening episodes: disjoint from training evals (10000 + n) and seed 0
 SCREEN_WITHIN = 0.1  # screen the checkpoints whose training-eval success is this close to the best
@@ -100,6 +109,21 @@ def screen_checkpoints(
     }
 
 
+def deployment_overrides(meta: dict, new: dict) -> dict:
+    """Apply env overrides ``new`` to a policy's metadata; returns the record of what changed."""
+    from peghole_mjx.envs import load
+
+    over = dict(meta["env_overrides"])
+    load(meta["env"], config_overrides={**over, **new})  # an unknown key or bad value fails here
+    record = {
+        "env_overrides": new,
+        "trained_with": {k: over.get(k, "env default") for k in new},
+    }
+    meta["env_overrides"] = {**over, **new}
+    meta["deployment"] = record
+    return record
+
+
 def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawTextHelpFormatter)
     ap.add_argument("run", type=Path)
@@ -117,6 +141,14 @@ def main() -> int:
     ap.add_argument(
         "--candidates", type=int, nargs="+", help="with --screen: screen these steps only"
     )
+    ap.add_argument(
+        "--deploy-set",
+        action="append",
+        default=[],
+        type=_override,
+        metavar="KEY=VALUE",
+        help="run the published policy in an env changed from its training env (repeatable)",
+    )
     args = ap.parse_args()
 
     from peghole_mjx.policies import PRETRAINED
@@ -133,6 +165,8 @@ def main() -> int:
     shutil.copy2(src / "params.npz", dest / "params.npz")
     meta = json.loads((src / "policy.json").read_text())
     meta["selection"] = selection
+    if args.deploy_set:
+        deployment_overrides(meta, dict(args.deploy_set))
     (dest / "policy.json").write_text(json.dumps(meta, indent=2) + "\n")
     for f in ("metrics.csv", "curves.png", "summary.json"):
         if (args.run / f).exists():

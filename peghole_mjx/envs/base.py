@@ -178,6 +178,21 @@ def _rot_from_rotvec(v):
     return jnp.eye(3) + jnp.sin(th) * K + (1 - jnp.cos(th)) * K @ K
 
 
+def _check_override_keys(config: config_dict.ConfigDict, overrides: dict) -> None:
+    """Every flat ``a.b.c`` key of ``overrides`` names an existing config entry (no typos)."""
+    for key in overrides:
+        node, path = config, []
+        for part in key.split("."):
+            if not isinstance(node, config_dict.ConfigDict) or part not in node:
+                where = ".".join(path) or "the env config"
+                have = sorted(node.keys()) if isinstance(node, config_dict.ConfigDict) else []
+                raise UserInputError(
+                    f"unknown env config key {key!r}: {where} has no {part!r}"
+                    + (f" (it has: {', '.join(have)})" if have else "")
+                )
+            node, path = node[part], [*path, part]
+
+
 class PegHoleEnv:
     """Pull a peg out of its hole with the iiwa's impedance layer (thesis Ch 4).
 
@@ -220,6 +235,7 @@ class PegHoleEnv:
     def __init__(self, config: config_dict.ConfigDict, config_overrides: dict | None = None):
         config = config_dict.ConfigDict(config)
         if config_overrides:
+            _check_override_keys(config, config_overrides)
             config.update_from_flattened_dict(config_overrides)
         self._config = config
         config.lock()

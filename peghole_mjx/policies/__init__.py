@@ -3,8 +3,11 @@
 A policy directory holds two files:
 
 * ``policy.json``: the env name and its config overrides (so the env is rebuilt exactly as
-  trained), the network (hidden sizes, observation and action sizes, normalisation), the
-  training hyperparameters and where the policy came from;
+  trained, or as deployed), the network (hidden sizes, observation and action sizes,
+  normalisation), the training hyperparameters and where the policy came from; optionally
+  ``deployment``: env overrides set when the policy was published that differ from its
+  training env (e.g. a tighter force bound), with the trained values
+  (``train/publish_policy.py --deploy-set``);
 * ``params.npz``: the observation normaliser and the policy network's parameters (Brax SAC
   layout, leaves in tree order).
 

@@ -85,7 +85,9 @@ def params_sha256(params) -> str:
 def _parts_dirs(parts_dir, bundle, env, seed, batch):
     """(policy, baseline) slice folders under ``parts_dir``, each keyed by its ``key.json``.
 
-    ``policy-<sha256[:12]>/``: one per policy parameters; ``baseline/``: shared by every policy
+    ``policy-<params sha256[:12]>-<env config sha256[:8]>/``: one per policy parameters and
+    env (a checkpoint run in a changed env, e.g. a tighter force bound, gets its own
+    folder); ``baseline/``: shared by every policy
     evaluated in this folder whose env differs at most in :data:`BASELINE_IGNORED_CONFIG`.
     Not the episode count: slice k holds episodes [k batch, (k + 1) batch) of any evaluation
     with this seed (JAX's partitionable threefry splits keys prefix-stably), so a 256-episode
@@ -107,7 +109,9 @@ def _parts_dirs(parts_dir, bundle, env, seed, batch):
         "speed_m_s": SCRIPTED_SPEED_M_S,
     }
     baseline_dir = _keyed_dir(root / "baseline", baseline_key)
-    return _keyed_dir(root / f"policy-{sha[:12]}", policy_key), baseline_dir
+    cfg_sha = hashlib.sha256(policy_key["env_config"].encode()).hexdigest()
+    policy_dir = root / f"policy-{sha[:12]}-{cfg_sha[:8]}"
+    return _keyed_dir(policy_dir, policy_key), baseline_dir
 
 
 def evaluate(
