@@ -21,6 +21,8 @@ from pathlib import Path
 
 import numpy as np
 
+from peghole_mjx.training.evaluate import force_reduction_pct
+
 COLUMNS = ("success", "extraction_time_s", "mean_fz_N", "peak_fz_N", "mean_fxy_N")
 BOOTSTRAP_RESAMPLES = 10_000
 BOOTSTRAP_SEED = 0
@@ -51,9 +53,10 @@ def export(policy_dir: Path, baseline_dir: Path, out: Path) -> None:
 
 
 def reduction_pct(policy_fz: np.ndarray, baseline_fz: np.ndarray) -> float:
-    """Mean-|F_z| reduction of the policy vs the baseline, % (peghole evaluate's measure)."""
-    b = baseline_fz.mean()
-    return float(100.0 * (b - policy_fz.mean()) / b)
+    """Mean-|F_z| reduction of the policy vs the baseline, % (``peghole evaluate``'s own)."""
+    return float(
+        force_reduction_pct({"mean_fz_N": policy_fz.mean()}, {"mean_fz_N": baseline_fz.mean()})
+    )
 
 
 def analyse(

@@ -238,6 +238,27 @@ def test_publish_deployment_overrides_change_the_env_and_keep_the_trained_values
         deployment_overrides(meta, {"action.max_ff": 0.5})
 
 
+def test_publish_with_a_bad_deployment_key_keeps_the_published_policy(
+    trained, tmp_path, monkeypatch
+):
+    """A typo in --deploy-set fails before the committed policy folder is replaced."""
+    sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "train"))
+    import publish_policy
+
+    from peghole_mjx import policies
+
+    run, _ = trained
+    dest = tmp_path / "published"
+    dest.mkdir()
+    (dest / "policy.json").write_text("{}")
+    monkeypatch.setitem(policies.PRETRAINED, "rect", dest)
+    argv = ["publish_policy.py", str(run.out), "rect", "--checkpoint", "final"]
+    monkeypatch.setattr(sys, "argv", [*argv, "--deploy-set", "action.nope=1"])
+    with pytest.raises(UserInputError, match="action has no 'nope'"):
+        publish_policy.main()
+    assert (dest / "policy.json").read_text() == "{}"
+
+
 def _peghole(*args):
     return [sys.executable, "-m", "peghole_mjx.cli", *args]
 

@@ -158,15 +158,15 @@ def main() -> int:
         src, selection = screen_checkpoints(args.run, args.screen, args.candidates)
     else:
         src, selection = choose_checkpoint(args.run, args.checkpoint)
+    meta = json.loads((src / "policy.json").read_text())
+    meta["selection"] = selection
+    if args.deploy_set:  # before the published policy is replaced: a bad key loses nothing
+        deployment_overrides(meta, dict(args.deploy_set))
     dest = PRETRAINED[args.name]
     if dest.exists():
         shutil.rmtree(dest)
     dest.mkdir(parents=True)
     shutil.copy2(src / "params.npz", dest / "params.npz")
-    meta = json.loads((src / "policy.json").read_text())
-    meta["selection"] = selection
-    if args.deploy_set:
-        deployment_overrides(meta, dict(args.deploy_set))
     (dest / "policy.json").write_text(json.dumps(meta, indent=2) + "\n")
     for f in ("metrics.csv", "curves.png", "summary.json"):
         if (args.run / f).exists():
