@@ -16,6 +16,7 @@ its compliance centre ``L_C`` above the tip. See :class:`PegHoleEnv` for the tab
 from __future__ import annotations
 
 import functools
+import math
 from typing import Any
 
 import jax
@@ -29,7 +30,7 @@ from peghole_mjx._mjx import WARP_AVAILABLE, mjx
 from peghole_mjx.control import GAINS, LIMITS, ImpedanceController, Target, make_params
 from peghole_mjx.control.impedance import rotvec_from_mat
 from peghole_mjx.errors import UserInputError
-from peghole_mjx.geometry.mjcf import TOOL_DOWN_MAT, SimOptions, build_scene
+from peghole_mjx.geometry.mjcf import RECT_CONTACTS, TOOL_DOWN_MAT, SimOptions, build_scene
 from peghole_mjx.geometry.specs import MM, PegHoleSpec, get_preset
 
 #: Table 4.1 reward weights (one source of truth; configs copy them into reward_config)
@@ -57,6 +58,14 @@ def base_config(preset: str) -> config_dict.ConfigDict:
         ctrl_dt=0.02,  # s, one env step (50 Hz)
         sim_dt=SimOptions().timestep,  # s, physics step (from the one place it is set)
         episode_length=600,  # env steps (12 s at 50 Hz)
+        # contact settings (docs/contact.md; peghole experiment contact-check, variant "envs"):
+        # rect edge capsules, a 10 ms contact time constant (0: 2 x sim_dt, MuJoCo's stiffest)
+        # and frictional rows relaxed over 1 s (0: as stiff as the normal row)
+        contact=config_dict.create(
+            rect_contacts="edges",
+            timeconst_s=0.01,
+            friction_timeconst_s=1.0,
+        ),
         naconmax=64,  # warp: contact buffer per world (x num worlds)
         njmax=256,  # warp: constraint rows per world
         action=config_dict.create(
@@ -121,6 +130,24 @@ def base_config(preset: str) -> config_dict.ConfigDict:
             stiffness_N_m=(0.0, 0.0),  # CS off: if max > 0, k_xy ~ U(range) per episode
         ),
         peg_length_mm=spec.length_mm,
+    )
+
+
+def sim_options(config: config_dict.ConfigDict) -> SimOptions:
+    """The simulator options of an env config (its step and ``contact`` group)."""
+    c = config.contact
+    if c.rect_contacts not in RECT_CONTACTS:
+        raise UserInputError(
+            f"contact.rect_contacts must be one of {RECT_CONTACTS}, not {c.rect_contacts!r}"
+        )
+    for name in ("timeconst_s", "friction_timeconst_s"):
+        v = float(c[name])
+        if not (math.isfinite(v) and v >= 0):
+            raise UserInputError(f"contact.{name} must be a finite number >= 0, got {v}")
+    return SimOptions(
+        timestep=config.sim_dt,
+        contact_timeconst=float(c.timeconst_s) or None,
+        friction_timeconst=float(c.friction_timeconst_s) or None,
     )
 
 
@@ -250,8 +277,9 @@ class PegHoleEnv:
             raise UserInputError("ctrl_dt must be a whole multiple of sim_dt")
         self._n_substeps = round(n_sub)
         self.spec: PegHoleSpec = get_preset(config.preset)
-        sim = SimOptions(timestep=config.sim_dt)
-        self._mj_model = build_scene(self.spec, sim=sim).compile()
+        sim = sim_options(config)
+        kw = {"rect_contacts": config.contact.rect_contacts} if self.spec.kind == "rect" else {}
+        self._mj_model = build_scene(self.spec, sim=sim, **kw).compile()
         m = self._mj_model
         self._mjx_model = mjx.put_model(m, impl=config.impl)
         self._ctrl = ImpedanceController.from_model(m)

@@ -18,8 +18,9 @@ from pathlib import Path
 import mujoco
 import numpy as np
 
+from peghole_mjx.geometry import edges
 from peghole_mjx.geometry.parts import ConvexPart, hole_parts, peg_parts, peg_tip_z_m
-from peghole_mjx.geometry.specs import MM, DualSpec, PegHoleSpec
+from peghole_mjx.geometry.specs import MM, DualSpec, PegHoleSpec, RectSpec
 
 #: where the robot model lives: inside an installed package, or the repository's mjcf/
 _PKG_MJCF = Path(__file__).resolve().parents[1] / "_mjcf"
@@ -42,6 +43,17 @@ class SimOptions:
 
     ``contact_timeconst`` defaults to twice the timestep (MuJoCo's stiffest stable value);
     ``solimp`` near 1 keeps steady penetration to micrometres, below the tightest clearance.
+
+    ``friction_timeconst`` (the pairs' ``solreffriction``, s) relaxes the frictional rows of
+    each contact on their own, slower time scale. With the frictional rows as stiff as the
+    normal one, a sliding contact in MuJoCo's convex (Anitescu-type) friction model gains a
+    separating normal velocity of about ``mu * v_slide``: a peg pulled at 20 mm/s at
+    mu = 0.266 then bounces between the walls as single-step 50-100 N impulses instead of
+    resting in two-point contact. A 1 s friction time constant removes the bounce (both walls
+    loaded in >= 94 % of physics steps in two-point windows, per-step peak ~1x the 20 ms mean)
+    while a sliding contact still carries mu * N (measured mu_eff 0.26 at mu 0.266). Evidence:
+    ``peghole models contact-check`` (benchmarks/results/contact_check.json, docs/contact.md).
+    ``None``: the frictional rows use ``solref`` (MuJoCo's default).
     """
 
     timestep: float = 0.002
@@ -52,6 +64,7 @@ class SimOptions:
     contact_timeconst: float | None = None
     contact_dampratio: float = 1.0
     solimp: tuple[float, float, float, float, float] = (0.99, 0.999, 0.0002, 0.5, 2.0)
+    friction_timeconst: float | None = 1.0
     torsional_friction: float = 0.0
     tip_gap_mm: float = 0.5  # gap between the peg tip and the hole bottom in the start pose
 
@@ -59,6 +72,13 @@ class SimOptions:
     def solref(self) -> tuple[float, float]:
         tc = self.contact_timeconst if self.contact_timeconst is not None else 2 * self.timestep
         return (tc, self.contact_dampratio)
+
+    @property
+    def solreffriction(self) -> tuple[float, float]:
+        """The pairs' ``solreffriction`` ((0, 0): MuJoCo uses ``solref`` for friction)."""
+        if self.friction_timeconst is None:
+            return (0.0, 0.0)
+        return (self.friction_timeconst, 1.0)
 
 
 def _set_options(s: mujoco.MjSpec, sim: SimOptions) -> None:
@@ -130,31 +150,43 @@ def _add_hole(
     return parts, hole
 
 
-def _add_pairs(
-    s: mujoco.MjSpec,
-    pegs: list[ConvexPart],
-    holes: list[ConvexPart],
-    spec: PegHoleSpec,
-    sim: SimOptions,
-) -> None:
-    mu = spec.friction
+def _pair_names(
+    pegs: list[ConvexPart], holes: list[ConvexPart], spec: PegHoleSpec
+) -> list[tuple[str, str]]:
+    """(peg geom, hole geom) pairs of the part representation (dual: peg i meets hole i)."""
+    out = []
     for p in pegs:
         if isinstance(spec, DualSpec) and p.name == "peg_bridge":
             continue  # the bridge stays above the block: the pegs reach the floor first
         for h in holes:
             if p.group is not None and h.group is not None and p.group != h.group:
                 continue
-            s.add_pair(
-                name=f"{p.name}__{h.name}",
-                geomname1=p.name,
-                geomname2=h.name,
-                condim=3,
-                friction=[mu, mu, sim.torsional_friction, 0.0, 0.0],
-                solref=list(sim.solref),
-                solimp=list(sim.solimp),
-                margin=0.0,
-                gap=0.0,
-            )
+            out.append((p.name, h.name))
+    return out
+
+
+def _add_pairs(
+    s: mujoco.MjSpec, names: list[tuple[str, str]], spec: PegHoleSpec, sim: SimOptions
+) -> None:
+    mu = spec.friction
+    for g1, g2 in names:
+        s.add_pair(
+            name=f"{g1}__{g2}",
+            geomname1=g1,
+            geomname2=g2,
+            condim=3,
+            friction=[mu, mu, sim.torsional_friction, 0.0, 0.0],
+            solref=list(sim.solref),
+            solreffriction=list(sim.solreffriction),
+            solimp=list(sim.solimp),
+            margin=0.0,
+            gap=0.0,
+        )
+
+
+#: how the rectangular peg meets the hole: "edges" (tip- and mouth-edge capsules,
+#: :mod:`peghole_mjx.geometry.edges`) or "box" (peg box against wall boxes)
+RECT_CONTACTS = ("edges", "box")
 
 
 def block_top_z(spec: PegHoleSpec) -> float:
@@ -169,6 +201,7 @@ def build_scene(
     sim: SimOptions | None = None,
     ik: bool = True,
     peg_single_hull: bool = False,
+    rect_contacts: str = "edges",
 ) -> mujoco.MjSpec:
     """The complete scene as an :class:`mujoco.MjSpec`.
 
@@ -176,7 +209,10 @@ def build_scene(
     ``inserted`` (peg fully in the hole, tip ``tip_gap_mm`` above the bottom, found by IK).
     ``robot=False``: the free peg (a ``freejoint``) alone, keyframe ``mouth`` (tip at the mouth).
     ``peg_single_hull=True`` collides the peg as one convex hull (the PyBullet failure mode).
+    ``rect_contacts``: see :data:`RECT_CONTACTS` (rect presets only).
     """
+    if rect_contacts not in RECT_CONTACTS:
+        raise ValueError(f"rect_contacts must be one of {RECT_CONTACTS}, not {rect_contacts!r}")
     sim = sim or SimOptions()
     top_z = block_top_z(spec)
     if robot:
@@ -202,8 +238,17 @@ def build_scene(
     )
     s.worldbody.add_light(name="top_light", pos=[0.5, 0, 2.0], dir=[0, 0, -1])
     pegs = _add_peg(s, peg, spec, single_hull=peg_single_hull)
-    holes, _ = _add_hole(s, spec, top_z)
-    _add_pairs(s, pegs, holes, spec, sim)
+    holes, hole_body = _add_hole(s, spec, top_z)
+    if isinstance(spec, RectSpec) and rect_contacts == "edges" and not peg_single_hull:
+        pairs = edges.edge_pairs(
+            edges.add_peg_edges(peg, spec),
+            edges.add_mouth_edges(hole_body, spec),
+            pegs[0].name,
+            [h.name for h in holes],
+        )
+    else:
+        pairs = _pair_names(pegs, holes, spec)
+    _add_pairs(s, pairs, spec, sim)
     tip = peg_tip_z_m(spec)
     if robot:
         s.add_sensor(
