@@ -30,6 +30,7 @@ from peghole_mjx.control import GAINS, LIMITS, ImpedanceController, Target, make
 from peghole_mjx.control.impedance import rotvec_from_mat
 from peghole_mjx.errors import UserInputError
 from peghole_mjx.geometry.mjcf import TOOL_DOWN_MAT, SimOptions, build_scene
+from peghole_mjx.geometry.parts import resolve_representation
 from peghole_mjx.geometry.specs import MM, PegHoleSpec, get_preset
 
 #: Table 4.1 reward weights (one source of truth; configs copy them into reward_config)
@@ -54,6 +55,10 @@ def base_config(preset: str) -> config_dict.ConfigDict:
     return config_dict.create(
         preset=preset,
         impl="jax",  # "jax" (CPU, GPU) or "warp" (CUDA GPU)
+        # collision representation of the parts (geometry/parts.py): dual "capsule" (default,
+        # GPU-scale), "mesh" (exact 16-gon parts) or "cylinder" (warp only); rect: "box"
+        representation=resolve_representation(spec),
+        contact_cap=None,  # MJX max_contact_points; None: the measured cap (mjcf.CONTACT_CAPS)
         ctrl_dt=0.02,  # s, one env step (50 Hz)
         sim_dt=SimOptions().timestep,  # s, physics step (from the one place it is set)
         episode_length=600,  # env steps (12 s at 50 Hz)
@@ -251,7 +256,12 @@ class PegHoleEnv:
         self._n_substeps = round(n_sub)
         self.spec: PegHoleSpec = get_preset(config.preset)
         sim = SimOptions(timestep=config.sim_dt)
-        self._mj_model = build_scene(self.spec, sim=sim).compile()
+        self.representation = resolve_representation(
+            self.spec, config.representation, impl=config.impl
+        )
+        self._mj_model = build_scene(
+            self.spec, sim=sim, representation=self.representation, contact_cap=config.contact_cap
+        ).compile()
         m = self._mj_model
         self._mjx_model = mjx.put_model(m, impl=config.impl)
         self._ctrl = ImpedanceController.from_model(m)
