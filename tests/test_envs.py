@@ -144,6 +144,36 @@ def test_random_actions_200_steps_no_nan_and_determinism(compiled):
         np.testing.assert_array_equal(np.asarray(s2.obs), np.asarray(traj1[i]))
 
 
+@pytest.mark.slow
+def test_rollouts_stay_below_the_contact_cap(compiled):
+    """Every capped scene: the active contacts (distance <= 0) of scripted and random rollouts
+    stay below the scene's ``max_contact_points`` (a rollout that reaches it may have lost
+    contacts; the caps are sized in benchmarks/results/contact_caps.json)."""
+    from peghole_mjx.geometry.check import numeric
+    from peghole_mjx.geometry.mjcf import CONTACT_CAPS
+
+    env = compiled.env
+    cap = numeric(env.mj_model, "max_contact_points")
+    entry = CONTACT_CAPS.get((env.spec.kind, env.representation))
+    assert cap == (entry.cap if entry else 0)
+    if not cap:
+        pytest.skip(f"{env.representation}: no contact cap")
+    assert cap > entry.measured_max
+    scripted = jnp.broadcast_to(scripted_policy(env)(None, None), (N_WORLDS, env.action_size))
+    rand = jax.random.uniform(
+        jax.random.PRNGKey(7), (60, N_WORLDS, env.action_size), minval=-1, maxval=1
+    )
+    worst = 0
+    for actions in ([scripted] * 40, rand):
+        s = compiled.reset(compiled.keys(5))
+        for a in actions:
+            s = compiled.step(s, a)
+            active = np.sum(np.asarray(s.data._impl.contact.dist) <= 0.0, axis=-1)
+            worst = max(worst, int(active.max()))
+    assert s.data._impl.contact.dist.shape[-1] == cap
+    assert worst < cap, f"{env.representation}: {worst} active contacts reach the cap {cap}"
+
+
 def test_every_reset_is_randomised(rect):
     a = rect.reset(rect.keys(0))
     b = rect.reset(rect.keys(1))
