@@ -369,6 +369,28 @@ def test_warp_contact_buffer_overflow_ends_the_episode_and_is_counted():
     assert s.success_rate < 1.0
 
 
+@pytest.mark.gpu
+@pytest.mark.skipif(not _cuda_warp(), reason="needs a CUDA GPU and warp-lang (impl='warp')")
+@pytest.mark.parametrize(
+    "name,rep", [("RectExtract", "box"), ("DualExtract", "capsule"), ("DualExtract", "cylinder")]
+)
+def test_warp_scenes_step_without_overflow(name, rep):
+    """MuJoCo Warp runs every scene (the dual cylinder one too) with the default buffers."""
+    env = envs.load(name, config_overrides={"impl": "warp", "representation": rep})
+    res = rollout(env, scripted_policy(env), 4, seed=0, progress=False)
+    s = res.summary()
+    assert s.overflow_worlds == 0 and s.nan_worlds == 0
+
+
+def test_cylinder_needs_warp_one_line_error():
+    with pytest.raises(UserInputError, match="cannot run with impl='jax'"):
+        envs.load("DualExtract", config_overrides={"representation": "cylinder"})
+    with pytest.raises(UserInputError, match="unknown collision representation"):
+        envs.load("DualExtract", config_overrides={"representation": "sphere"})
+    with pytest.raises(UserInputError, match="below the measured maximum"):
+        envs.load("DualExtract", config_overrides={"contact_cap": 4})
+
+
 def test_unknown_config_override_key_is_refused_by_name():
     """A typo in a flat override (``--set env.KEY=...``) is an error, not a silently new key."""
     for key, msg in (

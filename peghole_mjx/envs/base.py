@@ -62,8 +62,11 @@ def base_config(preset: str) -> config_dict.ConfigDict:
         ctrl_dt=0.02,  # s, one env step (50 Hz)
         sim_dt=SimOptions().timestep,  # s, physics step (from the one place it is set)
         episode_length=600,  # env steps (12 s at 50 Hz)
-        naconmax=64,  # warp: contact buffer per world (x num worlds)
-        njmax=256,  # warp: constraint rows per world
+        # warp: contact buffer per world (x num worlds) and constraint rows per world; the most
+        # active contacts measured (benchmarks/results/contact_caps.json) are rect 20, dual
+        # capsule 22, dual mesh 47; 3 rows per elliptic condim-3 contact + joint limits
+        naconmax=64,
+        njmax=256,
         action=config_dict.create(
             max_step_offset_mm=LIMITS.max_step_offset_m / MM,  # |dx|, |dy| per step (Sec 4.3.1)
             max_speed_m_s=LIMITS.max_speed_m_s,  # |dz| per step = this x ctrl_dt
@@ -263,6 +266,11 @@ class PegHoleEnv:
             self.spec, sim=sim, representation=self.representation, contact_cap=config.contact_cap
         ).compile()
         m = self._mj_model
+        if config.impl == "warp":
+            # MuJoCo Warp collides box-box (rect) and capsule-box with its primitive routines
+            # only with nativeccd off; the cylinder representation's cylinder-box pairs go
+            # through GJK/EPA either way
+            m.opt.disableflags |= mujoco.mjtDisableBit.mjDSBL_NATIVECCD
         self._mjx_model = mjx.put_model(m, impl=config.impl)
         self._ctrl = ImpedanceController.from_model(m)
         # ids, looked up by name
