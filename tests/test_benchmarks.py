@@ -417,3 +417,20 @@ def test_scene_variants_name_a_representation():
     assert bench_common.SCENE_OVERRIDES["dual-mesh"] == {"representation": "mesh"}
     assert throughput.skip_reason("mjx-jax", "dual-cylinder", None) is not None
     assert throughput.skip_reason("mjx-jax", "dual-mesh", None) is None
+
+
+def test_jammed_dual_contact_forces_match_the_oracle(monkeypatch):
+    """Two-point jam of the dual peg (benchmarks/capsule_fidelity.py jam, one depth, a faster
+    pull): the capsule and mesh scenes' mouth and tip contact forces are within 10 % of the
+    quasi-static oracle's, and the capsule's extraction force too (MuJoCo C, a few seconds)."""
+    import capsule_fidelity
+
+    monkeypatch.setattr(capsule_fidelity, "JAM_DEPTHS_MM", (25.0,))
+    out = capsule_fidelity.jam(speed_mm_s=10.0, h0_mm=30.0)
+    rel = out["relative_difference"]["25"]
+    assert set(out["oracle"]["25"]["contacts_N"]) == {"H2R-corner/P2", "P2L-tip/H2"}
+    for rep in ("capsule", "mesh"):
+        for name, v in rel[rep].items():
+            if name != "F_z":
+                assert abs(v) < 0.10, (rep, name, v)
+    assert abs(rel["capsule"]["F_z"]) < 0.10

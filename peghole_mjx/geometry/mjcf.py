@@ -202,11 +202,13 @@ class ContactCap:
 #: 2026-11-29 on the 2-core CPU (8 worlds, 400 env steps in MuJoCo C, 300 in MJX-JAX, scripted
 #: and random actions; benchmarks/results/contact_caps.json). cap 0 = none: the rect scene's
 #: 5 box-box pairs allocate 20 contacts (4 each) and a random rollout makes all 20 active;
-#: the mesh scene is the exact-geometry reference and stays uncapped. Dual capsule: at most 22
-#: of 68 allocated (MuJoCo C, random actions; MJX 15), so 32 allocated (a 10-contact margin).
+#: the mesh scene is the exact-geometry reference and stays uncapped (47 active seen). Dual
+#: capsule: at most 22 of 68 allocated (MuJoCo C, random actions; MJX 15), so 32 allocated
+#: (a 10-contact margin).
 CONTACT_CAPS: dict[tuple[str, str], ContactCap] = {
     ("rect", "box"): ContactCap(measured_max=20, cap=0),
     ("dual", "capsule"): ContactCap(measured_max=22, cap=32),
+    ("dual", "mesh"): ContactCap(measured_max=47, cap=0),  # of 136 allocated (MuJoCo C, random)
 }
 
 
