@@ -280,6 +280,10 @@ def jam(
             res[f"{h:g}"] = {
                 "contacts_N": {n: round(v, 3) for n, v in sums.items() if v > 0.05},
                 "F_z_N": round(float(np.mean([fz for _, fz, _ in w])), 4),
+                # chatter: the spread of the extraction force over the 0.5 mm window, and of
+                # the summed normal forces
+                "F_z_std_N": round(float(np.std([fz for _, fz, _ in w])), 4),
+                "normal_sum_std_N": round(float(np.std([sum(s.values()) for s, _, _ in w])), 4),
                 "theta_deg": round(float(np.mean([a for _, _, a in w])), 4),
                 "samples": len(w),
             }
@@ -324,9 +328,156 @@ def jam(
     return out
 
 
+def jam_mjx(speed_mm_s: float = 10.0, h0_mm: float = 42.0, timestep: float = 1e-4) -> dict:
+    """The jam of :func:`jam` in MJX-JAX (one world, a jitted scan): the extraction force F_z
+    (constraint force on the z slide) and the tilt at the compared depths, capsule and mesh,
+    vs the oracle. (MJX's per-contact forces are not read here: F_z and the tilt carry the
+    normal forces' balance.)"""
+    import jax
+    import jax.numpy as jnp
+    import mujoco
+
+    from peghole_mjx._mjx import mjx
+    from peghole_mjx.analysis import dual, oracle
+    from peghole_mjx.geometry.specs import MM, PRESETS
+
+    spec = PRESETS["dual-2"]
+    L_C = 0.0
+    kw = dict(dual.DEFAULTS)
+    body, _ = dual.oracle_body(spec, None, L_C, **kw)
+    depths = [h for h in JAM_DEPTHS_MM if h < h0_mm - 1]
+    sol = oracle.solve(body, np.asarray(depths))
+    K_x, K_th = kw["K_x_N_per_mm"] / MM, kw["K_theta_Nmm_per_rad"] * MM
+    x_m, th_m = (
+        float(v)
+        for v in dual.common.rest_pose(L_C, kw["delta0_mm"], kw["beta0_rad"], kw["theta0_rad"])
+    )
+    out: dict = {
+        "engine": "mjx-jax (CPU)",
+        "harness": {"timestep_s": timestep, "pull_speed_mm_s": speed_mm_s, "start_depth_mm": h0_mm},
+        "oracle": {
+            f"{h:g}": {
+                "F_z_N": round(float(sol.F_z[i]), 4),
+                "theta_deg": round(float(np.degrees(sol.theta[i])), 4),
+            }
+            for i, h in enumerate(depths)
+        },
+    }
+    settle = 0.3
+    n = int((settle + (h0_mm - min(depths) + 0.5) / speed_mm_s) / timestep)
+    for rep in ("capsule", "mesh"):
+        m = _planar_model(spec, rep, h0_mm, timestep)
+        d0 = mujoco.MjData(m)
+        mujoco.mj_forward(m, d0)
+        mouth = jnp.asarray(d0.site("hole_mouth").xpos)
+        peg, tip_site, zdof = m.body("peg").id, m.site("peg_tip").id, int(m.joint("z").dofadr[0])
+        mx = mjx.put_model(m, impl="jax")
+        dx = mjx.put_data(m, d0, impl="jax")
+
+        def step(d, _, mx=mx, mouth=mouth, peg=peg, tip_site=tip_site, zdof=zdof):
+            pulled = jnp.maximum(0.0, d.time - settle) * speed_mm_s * MM
+            R = d.xmat[peg]
+            up = -R[:, 2]
+            tip = d.site_xpos[tip_site]
+            th = jnp.arctan2(-up[0], up[2])
+            C = tip + L_C * MM * up
+            Fx = -K_x * ((C[0] - mouth[0]) / MM - x_m) * MM
+            F = jnp.array([Fx, 0.0, 0.0])
+            torque = jnp.array([0.0, K_th * (th - th_m), 0.0]) + jnp.cross(C - d.xipos[peg], F)
+            xfrc = d.xfrc_applied.at[peg].set(jnp.concatenate([F, torque]))
+            d = mjx.step(mx, d.replace(ctrl=jnp.array([-pulled]), xfrc_applied=xfrc))
+            depth = (mouth[2] - d.site_xpos[tip_site][2]) / MM
+            return d, jnp.stack([depth, d.qfrc_constraint[zdof], jnp.degrees(th)])
+
+        run = jax.jit(lambda d, step=step: jax.lax.scan(step, d, None, length=n))
+        t0 = time.perf_counter()
+        _, trace = run(dx)
+        trace = np.asarray(trace)
+        wall = time.perf_counter() - t0
+        res = {}
+        for h in depths:
+            sel = np.abs(trace[:, 0] - h) < 0.25
+            if not sel.any():
+                res[f"{h:g}"] = None
+                continue
+            res[f"{h:g}"] = {
+                "F_z_N": round(float(trace[sel, 1].mean()), 4),
+                "F_z_std_N": round(float(trace[sel, 1].std()), 4),
+                "theta_deg": round(float(trace[sel, 2].mean()), 4),
+                "samples": int(sel.sum()),
+            }
+        out[rep] = res
+        out[f"{rep}_wall_s"] = round(wall, 1)
+        out[f"{rep}_finite"] = bool(np.isfinite(trace).all())
+    out["relative_difference_F_z"] = {
+        rep: {
+            k: None if v is None else round(v["F_z_N"] / out["oracle"][k]["F_z_N"] - 1, 4)
+            for k, v in out[rep].items()
+        }
+        for rep in ("capsule", "mesh")
+    }
+    return out
+
+
+def profile(episodes: int = 32, seed: int = 0) -> dict:
+    """Where the baseline's extraction force differs: MuJoCo C, the scripted pull in the
+    published dual policy's env (``throughput.CWorlds``, the env's control step with the NumPy
+    impedance law), the vertical contact force on the peg summed over contacts after every
+    physics step, averaged per phase of the pull: tip deeper than r below the mouth (the
+    capsule's rounded end fully inside, both representations alike) and the last r before the
+    tip leaves the mouth plus until success (the capsule's rounded end still in the hole, the
+    mesh peg's flat tip already out)."""
+    import mujoco
+    from throughput import CWorlds, scripted_action
+
+    from peghole_mjx.envs import load
+    from peghole_mjx.policies import load_policy
+
+    bundle = load_policy("dual")
+    out: dict = {"episodes": episodes, "engine": "mujoco-c (throughput.CWorlds)"}
+    for rep in ("capsule", "mesh"):
+        env = load(
+            bundle.env_name, config_overrides={**bundle.env_overrides, "representation": rep}
+        )
+        r_mm = env.spec.peg_radii_mm[0]
+        cw = CWorlds(env, 1, seed=seed)
+        m, d = cw.m, cw.datas[0]
+        peg_body = m.body("peg").id
+        peg_geoms = {g for g in range(m.ngeom) if m.geom_bodyid[g] == peg_body}
+        f6 = np.zeros(6)
+        a = scripted_action(env)
+        phases = {"deep": [], "exit": []}
+        per_episode = []
+        for _ in range(episodes):
+            sums = {"deep": [], "exit": []}
+            while True:
+                depth = cw.depth_mm(d, cw.info[0])
+                fz = 0.0
+                for i in range(d.ncon):
+                    c = d.contact[i]
+                    if c.geom1 not in peg_geoms and c.geom2 not in peg_geoms:
+                        continue
+                    mujoco.mj_contactForce(m, d, i, f6)
+                    f_world = c.frame.reshape(3, 3).T @ f6[:3]  # on geom2, world frame
+                    fz += f_world[2] if c.geom2 in peg_geoms else -f_world[2]
+                sums["deep" if depth > r_mm else "exit"].append(abs(fz))
+                if cw.step(0, a):
+                    break
+            for k in sums:
+                phases[k].append(float(np.mean(sums[k])) if sums[k] else 0.0)
+            per_episode.append(float(np.mean(sums["deep"] + sums["exit"])))
+        out[rep] = {
+            "mean_abs_contact_fz_N": mean_ci(np.array(per_episode)),
+            "phase_deep_mean_abs_contact_fz_N": mean_ci(np.array(phases["deep"])),
+            "phase_exit_mean_abs_contact_fz_N": mean_ci(np.array(phases["exit"])),
+            "exit_phase_depth_mm": f"< {r_mm:g} (= r) below the mouth until success",
+        }
+    return out
+
+
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    ap.add_argument("part", choices=("baseline", "jam"))
+    ap.add_argument("part", choices=("baseline", "jam", "jam_mjx", "profile"))
     ap.add_argument("--episodes", type=int, default=256)
     ap.add_argument("--batch", type=int, default=256)
     ap.add_argument("--note", default="")
@@ -338,6 +489,10 @@ def main(argv: list[str] | None = None) -> int:
     data = json.loads(OUT.read_text()) if OUT.exists() else {}
     if args.part == "baseline":
         part = baseline(args.episodes, args.batch)
+    elif args.part == "profile":
+        part = profile()
+    elif args.part == "jam_mjx":
+        part = jam_mjx()
     else:
         part = jam()
     data[args.part] = {**provenance(), "note": args.note, **part}

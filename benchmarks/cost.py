@@ -85,14 +85,18 @@ def _batched(shape, w: int):
     return jax.tree.map(lambda x: jax.ShapeDtypeStruct((w, *x.shape), x.dtype), shape)
 
 
-def measure(name: str, rep: str, compile_worlds: int = 8) -> dict:
-    """The cost entry of one env in one representation (see the module docstring)."""
+def measure(name: str, rep: str, compile_worlds: int = 8, contact_cap: int | None = None) -> dict:
+    """The cost entry of one env in one representation (see the module docstring);
+    ``contact_cap``: another ``max_contact_points`` than the scene's measured default."""
     import jax
 
     from peghole_mjx import envs
     from peghole_mjx._mjx import mjx
 
-    env = envs.load(name, config_overrides={"representation": rep})
+    over = {"representation": rep}
+    if contact_cap is not None:
+        over["contact_cap"] = contact_cap
+    env = envs.load(name, config_overrides=over)
     mx = env.mjx_model
     key = jax.random.PRNGKey(0)
     shape = jax.eval_shape(env.reset, key)
@@ -102,6 +106,7 @@ def measure(name: str, rep: str, compile_worlds: int = 8) -> dict:
     out: dict = {
         "env": name,
         "representation": rep,
+        "contact_cap": contact_cap if contact_cap is not None else "default",
         "n_geoms": int(env.mj_model.ngeom),
         "n_pairs": int(env.mj_model.npair),
         "contacts_allocated": int(shape.data._impl.contact.dist.shape[0]),
@@ -180,7 +185,12 @@ def speed(worlds: list[int], min_time: float, chunk: int, timeout: float) -> lis
 
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    ap.add_argument("--variants", default="rect:box,dual:capsule,dual:mesh")
+    ap.add_argument(
+        "--variants",
+        default="rect:box,dual:capsule,dual:mesh",
+        help="comma list of scene:representation[:contact cap]",
+    )
+    ap.add_argument("--append", action="store_true", help="add the entries to --out's")
     ap.add_argument("--speed", action="store_true", help="also the side-by-side CPU speed rows")
     ap.add_argument("--worlds", default="1,8", help="speed rows: worlds")
     ap.add_argument("--min-time", type=float, default=8.0)
@@ -195,23 +205,35 @@ def main(argv: list[str] | None = None) -> int:
 
     label = device_label(gpu_kind())
     out_path = args.out or RESULTS / f"cost_{label}.json"
-    want = {tuple(v.split(":")) for v in args.variants.split(",")}
+    want = [v.split(":") for v in args.variants.split(",")]
+    names = {(s, r): n for s, n, r in VARIANTS}
     load0 = load_average()
     t_start = time.perf_counter()
     entries = []
-    for scene, name, rep in VARIANTS:
-        if (scene, rep) in want:
-            e = {"scene": scene, **measure(name, rep)}
-            x = e["xla"]
-            print(
-                f"[cost] {scene}/{rep}: env step {x['env_step']['bytes_per_world'] / 1e6:.2f} MB, "
-                f"physics step {x['physics_step']['bytes_per_world'] / 1e6:.2f} MB, collision "
-                f"{x['collision']['bytes_per_world'] / 1e6:.2f} MB, solver iteration "
-                f"{x['solver_iteration']['bytes_per_world'] / 1e6:.2f} MB per world; compile "
-                f"{e['env_step_compile_s']} s",
-                flush=True,
-            )
-            entries.append(e)
+    for scene, rep, *cap in want:
+        if (scene, rep) not in names:
+            ap.error(f"unknown variant {scene}:{rep}")
+        name = names[(scene, rep)]
+        e = {"scene": scene, **measure(name, rep, contact_cap=int(cap[0]) if cap else None)}
+        x = e["xla"]
+        print(
+            f"[cost] {scene}/{rep} cap {e['contact_cap']}: env step "
+            f"{x['env_step']['bytes_per_world'] / 1e6:.2f} MB, "
+            f"physics step {x['physics_step']['bytes_per_world'] / 1e6:.2f} MB, collision "
+            f"{x['collision']['bytes_per_world'] / 1e6:.2f} MB, solver iteration "
+            f"{x['solver_iteration']['bytes_per_world'] / 1e6:.2f} MB per world; compile "
+            f"{e['env_step_compile_s']} s",
+            flush=True,
+        )
+        entries.append(e)
+    if args.append and out_path.exists():
+        old = json.loads(out_path.read_text())
+        old.setdefault("extra_entries", []).extend(
+            {**e, "measured": utc_now(), "note": args.note} for e in entries
+        )
+        out_path.write_text(json.dumps(old, indent=2, default=float) + "\n")
+        print(f"appended {len(entries)} entries to {out_path}")
+        return 0
     result: dict = {
         **provenance(),
         "note": args.note,
