@@ -30,7 +30,8 @@ from peghole_mjx._mjx import WARP_AVAILABLE, mjx
 from peghole_mjx.control import GAINS, LIMITS, ImpedanceController, Target, make_params
 from peghole_mjx.control.impedance import rotvec_from_mat
 from peghole_mjx.errors import UserInputError
-from peghole_mjx.geometry.mjcf import RECT_CONTACTS, TOOL_DOWN_MAT, SimOptions, build_scene
+from peghole_mjx.geometry.mjcf import TOOL_DOWN_MAT, SimOptions, build_scene
+from peghole_mjx.geometry.parts import resolve_representation
 from peghole_mjx.geometry.specs import MM, PegHoleSpec, get_preset
 
 #: Table 4.1 reward weights (one source of truth; configs copy them into reward_config)
@@ -55,19 +56,23 @@ def base_config(preset: str) -> config_dict.ConfigDict:
     return config_dict.create(
         preset=preset,
         impl="jax",  # "jax" (CPU, GPU) or "warp" (CUDA GPU)
+        # collision representation of the parts (geometry/parts.py): dual "capsule" (default,
+        # GPU-scale), "mesh" (exact 16-gon parts) or "cylinder" (warp only); rect: "edges"
+        # (default: edge-capsule contacts, geometry/edges.py) or "box"
+        representation=resolve_representation(spec),
+        contact_cap=None,  # MJX max_contact_points; None: the measured cap (mjcf.CONTACT_CAPS)
         ctrl_dt=0.02,  # s, one env step (50 Hz)
         sim_dt=SimOptions().timestep,  # s, physics step (from the one place it is set)
         episode_length=600,  # env steps (12 s at 50 Hz)
         # contact settings (docs/contact.md; peghole experiment contact-check, variant "envs"):
-        # rect edge capsules, a 10 ms contact time constant (0: 2 x sim_dt, MuJoCo's stiffest)
-        # and frictional rows relaxed over 1 s (0: as stiff as the normal row)
-        contact=config_dict.create(
-            rect_contacts="edges",
-            timeconst_s=0.01,
-            friction_timeconst_s=1.0,
-        ),
-        naconmax=64,  # warp: contact buffer per world (x num worlds)
-        njmax=256,  # warp: constraint rows per world
+        # a 10 ms contact time constant (0: 2 x sim_dt, MuJoCo's stiffest) and frictional rows
+        # relaxed over 1 s (0: as stiff as the normal row)
+        contact=config_dict.create(timeconst_s=0.01, friction_timeconst_s=1.0),
+        # warp: contact buffer per world (x num worlds) and constraint rows per world; the most
+        # active contacts measured (benchmarks/results/contact_caps.json) are rect 20, dual
+        # capsule 22, dual mesh 47; 3 rows per elliptic condim-3 contact + joint limits
+        naconmax=64,
+        njmax=256,
         action=config_dict.create(
             max_step_offset_mm=LIMITS.max_step_offset_m / MM,  # |dx|, |dy| per step (Sec 4.3.1)
             max_speed_m_s=LIMITS.max_speed_m_s,  # |dz| per step = this x ctrl_dt
@@ -136,10 +141,6 @@ def base_config(preset: str) -> config_dict.ConfigDict:
 def sim_options(config: config_dict.ConfigDict) -> SimOptions:
     """The simulator options of an env config (its step and ``contact`` group)."""
     c = config.contact
-    if c.rect_contacts not in RECT_CONTACTS:
-        raise UserInputError(
-            f"contact.rect_contacts must be one of {RECT_CONTACTS}, not {c.rect_contacts!r}"
-        )
     for name in ("timeconst_s", "friction_timeconst_s"):
         v = float(c[name])
         if not (math.isfinite(v) and v >= 0):
@@ -278,9 +279,18 @@ class PegHoleEnv:
         self._n_substeps = round(n_sub)
         self.spec: PegHoleSpec = get_preset(config.preset)
         sim = sim_options(config)
-        kw = {"rect_contacts": config.contact.rect_contacts} if self.spec.kind == "rect" else {}
-        self._mj_model = build_scene(self.spec, sim=sim, **kw).compile()
+        self.representation = resolve_representation(
+            self.spec, config.representation, impl=config.impl
+        )
+        self._mj_model = build_scene(
+            self.spec, sim=sim, representation=self.representation, contact_cap=config.contact_cap
+        ).compile()
         m = self._mj_model
+        if config.impl == "warp":
+            # MuJoCo Warp collides box-box (rect) and capsule-box with its primitive routines
+            # only with nativeccd off; the cylinder representation's cylinder-box pairs go
+            # through GJK/EPA either way
+            m.opt.disableflags |= mujoco.mjtDisableBit.mjDSBL_NATIVECCD
         self._mjx_model = mjx.put_model(m, impl=config.impl)
         self._ctrl = ImpedanceController.from_model(m)
         # ids, looked up by name

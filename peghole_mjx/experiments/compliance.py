@@ -117,8 +117,8 @@ class ExperimentConfig:
     batch: str = "vmap"
     #: simulator options of the scene (None: ``SimOptions()`` at :data:`TIMESTEP_S`)
     sim: SimOptions | None = None
-    #: how the rect peg meets the hole (:data:`peghole_mjx.geometry.mjcf.RECT_CONTACTS`)
-    rect_contacts: str = "edges"
+    #: collision representation (None: the default; :func:`geometry.parts.resolve_representation`)
+    representation: str | None = None
 
     def sim_options(self) -> SimOptions:
         """The simulator options in effect: ``sim``, else the project's default options at the
@@ -173,8 +173,7 @@ class Extraction:
         if mu is not None:
             self.spec = dataclasses.replace(self.spec, friction=float(mu))
         self.mu = float(self.spec.friction)
-        kw = {"rect_contacts": cfg.rect_contacts} if self.spec.kind == "rect" else {}
-        m = compile_scene(self.spec, sim=cfg.sim_options(), **kw)
+        m = compile_scene(self.spec, sim=cfg.sim_options(), representation=cfg.representation)
         self.m = m
         self.ctl = ImpedanceController(m)
         d = mujoco.MjData(m)

@@ -60,7 +60,7 @@ class Variant:
     name: str
     timestep_s: float
     friction_timeconst: float | None = 1.0
-    rect_contacts: str = "edges"
+    representation: str = "edges"
     contact_timeconst: float | None = None
     note: str = ""
 
@@ -139,7 +139,7 @@ def run_variant(
     cfg = cx.ExperimentConfig(
         geometry="rect",
         sim=variant.sim(),
-        rect_contacts=variant.rect_contacts,
+        representation=variant.representation,
         chunk_steps=round(0.4 / variant.timestep_s),
     )
     t0 = time.perf_counter()
@@ -236,7 +236,7 @@ def table_row(run: dict) -> str:
         return "-" if x is None else f"{x:.{nd}f}"
 
     return (
-        f"| {run['preset']} | {v['name']} | {v['timestep_s'] * 1e3:g} | {v['rect_contacts']} | "
+        f"| {run['preset']} | {v['name']} | {v['timestep_s'] * 1e3:g} | {v['representation']} | "
         f"{'-' if v['friction_timeconst'] is None else v['friction_timeconst']} | "
         f"{f(s['both_frac'])} | {f(s['peak_ratio_p95_max'], 1)} | "
         f"{f(s['switches_per_s_mean'], 1)} | "

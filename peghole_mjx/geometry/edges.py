@@ -1,4 +1,4 @@
-"""Edge-capsule contacts for the rectangular peg-hole (``rect_contacts="edges"``).
+"""Edge-capsule contacts for the rectangular peg-hole (representation ``edges``).
 
 MJX-JAX's box-box routine (``collision_convex._box_box``, mujoco-mjx 3.17) misses shallow
 contacts of a slightly tilted peg box against a wall box: from the same state MuJoCo C finds
