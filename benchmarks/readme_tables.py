@@ -210,28 +210,68 @@ def time_to_success() -> str:
     return "\n".join(lines)
 
 
-def compliance() -> str:
-    """Peak force by compliance-centre location, reductions beside the thesis's, penetration."""
-    lines = [
-        "| preset | peak F N: tip / centre / top | tip vs top % (thesis 77.1) | "
-        "tip vs centre % (thesis 55.6) | tip < centre < top | max penetration mm "
-        "(limit) | NaN worlds | step ms | device, date |",
-        "|---|---|---|---|---|---|---|---|---|",
+def contact_check() -> str:
+    """The contact-settings table: step x settings -> contact quality (contact_check.json)."""
+    from peghole_mjx.experiments.contact_check import TABLE_HEADER, table_row
+
+    d = json.loads((RESULTS / "contact_check.json").read_text())
+    rows = [table_row(r) for r in d["runs"]]
+    return "\n".join(
+        [
+            f"Device: {d['device']}; {d['date'][:10]}; "
+            f"{len(d['runs'][0]['worlds'])} worlds per row.",
+            "",
+            TABLE_HEADER,
+            *rows,
+        ]
+    )
+
+
+def _sweep_rows(geom: str) -> list[str]:
+    d = json.loads((RESULTS / f"compliance_sweep_{geom}.json").read_text())
+
+    def red(x):
+        if x["value"] is None:
+            return "-"
+        return f"{x['value']:.1f} [{x['ci95'][0]:.1f}, {x['ci95'][1]:.1f}]"
+
+    out = []
+    for c in d["cells"]:
+        q = c["quasi_static"]
+        pk = " / ".join(f"{v:.3g}" for v in c["peak_fz_N"].values())
+        out.append(
+            f"| {c['preset']} | {c['k_rot_Nm_rad']:g} | {c['beta0_deg']:+g} | {c['mu']:g} | "
+            f"{c['regime_KxLc2_over_Ktheta']:.3g} | {pk} | {red(c['reduction_tip_vs_top_pct'])} | "
+            f"{q['reduction_tip_vs_top_pct']:.1f} | {red(c['reduction_tip_vs_centre_pct'])} | "
+            f"{q['reduction_tip_vs_centre_pct']:.1f} | "
+            f"{c.get('max_penetration_in_hole_um', c['max_penetration_um']):.1f} "
+            f"({c['penetration_limit_um']:.1f}) | "
+            f"{c['nan_worlds']} |"
+        )
+    return out
+
+
+def compliance_sweep() -> str:
+    """The regime sweep: simulated reductions (95 % CI) beside the quasi-static oracle's."""
+    head = [
+        "| preset | K_theta N m/rad | beta0 deg | mu | K_lat L_C,top^2 / K_theta | "
+        "mean peak F_z N: tip / centre / top | tip vs top % [95 % CI] (R1: 77.1) | oracle | "
+        "tip vs centre % [95 % CI] (R1: 55.6) | oracle | max penetration um (limit) | NaN worlds |",
+        "|---|---|---|---|---|---|---|---|---|---|---|---|",
     ]
+    lines = list(head)
+    notes = []
     for geom in ("rect", "dual"):
-        d = json.loads((RESULTS / f"compliance_{geom}.json").read_text())
-        step_ms = 1000 * d["config"]["sim"]["timestep"]
-        for preset, peaks in d["peak_force_N"].items():
-            tip, centre, top = (peaks[k] for k in sorted(peaks, key=float))
-            lines.append(
-                f"| {preset} | {tip:.3f} / {centre:.3f} / {top:.3f} | "
-                f"{d['reduction_tip_vs_top_pct'][preset]:.1f} | "
-                f"{d['reduction_tip_vs_centre_pct'][preset]:.1f} | "
-                f"{'yes' if d['ordering_tip_lt_centre_lt_top'][preset] else 'no'} | "
-                f"{d['max_penetration_mm'][preset]:.4f} ({d['penetration_limit_mm'][preset]}) | "
-                f"{d['nan_worlds']} | {step_ms:g} | {d['device']}, {d['date'][:10]} |"
-            )
-    return "\n".join(lines)
+        path = RESULTS / f"compliance_sweep_{geom}.json"
+        if not path.exists():
+            continue
+        d = json.loads(path.read_text())
+        lines += _sweep_rows(geom)
+        notes.append(
+            f"{geom}: {sum(c['n_worlds'] for c in d['cells'])} worlds, {d['device']}, "
+            f"{d['date'][:10]}, {d['runtime_s'] / 60:.0f} min"
+        )
+    return "\n".join([*lines, "", "Runs: " + "; ".join(notes) + "."])
 
 
 POLICIES = ROOT / "peghole_mjx" / "policies"
@@ -373,7 +413,8 @@ def rl_vs_rlcs() -> str:
 TABLES = {
     "models_check": models_check,
     "env_rollouts": env_rollouts,
-    "compliance": compliance,
+    "contact_check": contact_check,
+    "compliance_sweep": compliance_sweep,
     "throughput": throughput,
     "roofline": roofline,
     "time_to_success": time_to_success,

@@ -59,6 +59,15 @@ def add_parser(subparsers) -> None:
     k.add_argument("--seed", type=int, default=0)
     k.add_argument("--out", type=Path, default=None, help="JSON file to write")
     k.add_argument("--json", action="store_true", help="print the JSON instead of a table")
+    k.add_argument(
+        "--x64", action="store_true", help="run in float64 (jax_enable_x64) instead of float32"
+    )
+    k.add_argument(
+        "--append",
+        action="store_true",
+        help="keep the runs already in --out (a rerun of the same preset, variant and "
+        "precision replaces its row)",
+    )
     k.set_defaults(func=run_contact_check)
 
 
@@ -147,6 +156,10 @@ def run_contact_check(args: argparse.Namespace) -> int:
     from peghole_mjx.experiments.sweep import clean_json
     from peghole_mjx.provenance import provenance
 
+    if args.x64:
+        import jax
+
+        jax.config.update("jax_enable_x64", True)
     presets = args.preset or ["rect-2", "rect-3"]
     names = args.variant or ["experiment", "envs"]
     if "all" in names:
@@ -158,6 +171,14 @@ def run_contact_check(args: argparse.Namespace) -> int:
         )
     if args.out is not None and args.out.is_dir():
         raise UserInputError(f"--out {args.out} is a folder; give a JSON file path")
+    if args.append and args.out is None:
+        raise UserInputError("--append needs --out")
+    old = []
+    if args.append and args.out.exists():
+        try:
+            old = json.loads(args.out.read_text())["runs"]
+        except (ValueError, KeyError) as exc:
+            raise UserInputError(f"--out {args.out} is not a contact-check JSON: {exc}") from None
     runs = []
     for p in presets:
         for n in names:
@@ -165,7 +186,21 @@ def run_contact_check(args: argparse.Namespace) -> int:
             runs.append(r)
             if not args.json:
                 print(cc.table_row(r), flush=True)
-    doc = clean_json({"bounds": cc.BOUNDS, "case": cc.case_dict(), "runs": runs, **provenance()})
+    new_keys = {(r["preset"], r["variant"]["name"], r["precision"]) for r in runs}
+    kept = [
+        r
+        for r in old
+        if (r["preset"], r["variant"]["name"], r.get("precision", "float32")) not in new_keys
+    ]
+    runs = kept + runs
+    doc = clean_json(
+        {
+            "bounds": cc.BOUNDS,
+            "case": cc.case_dict(),
+            "runs": runs,
+            **provenance(),
+        }
+    )
     if args.json:
         print(json.dumps(doc, indent=1))
     if args.out is not None:

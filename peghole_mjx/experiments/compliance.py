@@ -194,7 +194,10 @@ class Extraction:
         self.tip_z0 = float(d.site("peg_tip").xpos[2])
         self.dt = m.opt.timestep
         self.mx = mjx.put_model(m, impl="jax")
-        self.dx0 = mjx.put_data(m, d, impl="jax")
+        dx0 = mjx.put_data(m, d, impl="jax")
+        # with jax_enable_x64 a step returns some int32 fields as int64: start with its dtypes
+        out = jax.eval_shape(mjx.step, self.mx, dx0)
+        self.dx0 = jax.tree.map(lambda a, o: a.astype(o.dtype), dx0, out)
         depth = self.mouth_z - self.tip_z0
         pull = depth + cfg.clear_mm * MM
         self.n_settle = round(cfg.settle_s / self.dt)
@@ -225,8 +228,9 @@ class Extraction:
         dx = delta0 - L_C * jnp.sin(theta0)
         err = jnp.stack([dx, -(beta0 + theta0)])
         target = Target(x_C, R, jnp.zeros(3))
-        # max penetration m, nan flag, depth and time at max penetration, last single side
-        stats = jnp.zeros(5)
+        # max penetration m, nan flag, depth and time at max penetration, last single side,
+        # max penetration while the tip is below the mouth (where the clearance constrains it)
+        stats = jnp.zeros(6)
         return (self.dx0, target, params, err, stats)
 
     def _side_forces(self, dx):
@@ -277,6 +281,8 @@ class Extraction:
             .set(jnp.where(ok, 0.0, 1.0))
             .at[4]
             .set(jnp.where(side != 0, side, stats[4]))
+            .at[5]
+            .max(jnp.where(tip_depth > 0, pen, 0.0))
         )
         # F/T force on the peg, world frame, tared
         f = dx.site_xmat[self.ft_site] @ dx.sensordata[self.ft_adr : self.ft_adr + 3]
@@ -326,8 +332,10 @@ class Extraction:
         """Run every world of ``table`` (default :func:`world_table`) in one batch.
 
         Returns per world and sample the :data:`REC` columns (forces in N, ``depth_mm``), the
-        table, ``two_point`` (:func:`two_point_windows`), per-world ``penetration_mm`` and
-        ``nan``, the sample times ``time_s`` and the start depth ``h0_mm``.
+        table, ``two_point`` (:func:`two_point_windows`), per-world ``penetration_mm`` (the
+        whole pull), ``penetration_in_hole_mm`` (while the tip is below the mouth: the exit,
+        where a rounded tip meets the mouth edge, is left out) and ``nan``, the sample times
+        ``time_s`` and the start depth ``h0_mm``.
         """
         tab = world_table(self.cfg, self.preset) if table is None else table
         missing = [k for k in WORLD_KEYS if k not in tab]
@@ -352,7 +360,7 @@ class Extraction:
             recs.append(
                 np.concatenate(grec, axis=-2).reshape(-1, sum(r.shape[-2] for r in grec), len(REC))
             )
-            stats.append(np.asarray(g[4]).reshape(-1, 5))
+            stats.append(np.asarray(g[4]).reshape(-1, 6))
         bar.close()
         rec = np.concatenate(recs, axis=0).astype(np.float64)  # (worlds, samples, REC)
         stats = np.concatenate(stats, axis=0)
@@ -364,6 +372,7 @@ class Extraction:
         out["two_point"] = two_point_windows(out["f_plus"], out["f_minus"])
         out.update(
             penetration_mm=stats[:, 0] / MM,
+            penetration_in_hole_mm=stats[:, 5] / MM,
             penetration_at_depth_mm=stats[:, 2] / MM,
             penetration_at_time_s=stats[:, 3],
             nan=stats[:, 1] > 0,

@@ -212,6 +212,7 @@ def _world_summary(res: dict, geometry: str) -> dict[str, np.ndarray]:
         "peak_mag_late": pk_late["mag"],
         "nan": res["nan"],
         "penetration_mm": res["penetration_mm"],
+        "penetration_in_hole_mm": res["penetration_in_hole_mm"],
         "two_point_samples": tp.sum(1),
         "both_frac": both,
         "curve_fz": curve,
@@ -343,6 +344,9 @@ def _cell_result(cell: dict, d: dict, grid: Grid, seed: int) -> dict:
     out["n_worlds"] = len(tab["L_C"])
     out["nan_worlds"] = int(np.sum(d["nan"]))
     out["max_penetration_um"] = float(np.nanmax(d["penetration_mm"]) * 1e3)
+    if "penetration_in_hole_mm" in d:
+        out["max_penetration_in_hole_um"] = float(np.nanmax(d["penetration_in_hole_mm"]) * 1e3)
+    out["penetration_limit_um"] = 0.25 * PRESETS[cell["preset"]].radial_clearance_mm * 1e3
     out["two_point_worlds"] = {
         f"{lc:g}": int(np.sum(d["two_point_samples"][k * r : (k + 1) * r] > 0))
         for k, lc in enumerate(lcs)
