@@ -328,7 +328,12 @@ def jam(
     return out
 
 
-def jam_mjx(speed_mm_s: float = 10.0, h0_mm: float = 42.0, timestep: float = 1e-4) -> dict:
+def jam_mjx(
+    speed_mm_s: float = 10.0,
+    h0_mm: float = 42.0,
+    timestep: float = 1e-4,
+    reps: tuple[str, ...] = ("capsule", "mesh"),
+) -> dict:
     """The jam of :func:`jam` in MJX-JAX (one world, a jitted scan): the extraction force F_z
     (constraint force on the z slide) and the tilt at the compared depths, capsule and mesh,
     vs the oracle. (MJX's per-contact forces are not read here: F_z and the tilt carry the
@@ -365,7 +370,7 @@ def jam_mjx(speed_mm_s: float = 10.0, h0_mm: float = 42.0, timestep: float = 1e-
     }
     settle = 0.3
     n = int((settle + (h0_mm - min(depths) + 0.5) / speed_mm_s) / timestep)
-    for rep in ("capsule", "mesh"):
+    for rep in reps:
         m = _planar_model(spec, rep, h0_mm, timestep)
         d0 = mujoco.MjData(m)
         mujoco.mj_forward(m, d0)
@@ -414,7 +419,7 @@ def jam_mjx(speed_mm_s: float = 10.0, h0_mm: float = 42.0, timestep: float = 1e-
             k: None if v is None else round(v["F_z_N"] / out["oracle"][k]["F_z_N"] - 1, 4)
             for k, v in out[rep].items()
         }
-        for rep in ("capsule", "mesh")
+        for rep in reps
     }
     return out
 

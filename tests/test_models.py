@@ -239,3 +239,17 @@ def test_cli_bad_representation_and_cap_are_one_line_errors(tmp_path):
         )
         lines = [ln for ln in res.stderr.splitlines() if ln.startswith("peghole: error")]
         assert res.returncode == 2 and len(lines) == 1 and msg in lines[0], res.stderr
+
+
+def test_capsule_mouth_lips_keep_the_clearance(monkeypatch):
+    """The experimental rounded mouth lips (parts.LIP_RADIUS_MM > 0; off by default) add one
+    capsule per wall and keep the effective clearance band."""
+    from peghole_mjx.geometry import parts
+
+    spec = PRESETS["dual-2"]
+    monkeypatch.setattr(parts, "LIP_RADIUS_MM", 0.3)
+    m = free_peg_model(spec, representation="capsule")
+    assert m.npair == 2 * (2 * spec.n_sides + 1)
+    lo, hi = effective_clearance_range_mm(spec, m)
+    c = spec.clearance_mm
+    assert abs(lo / c - 1) <= CLEARANCE_TOLERANCE and abs(hi / c - 1) <= CLEARANCE_TOLERANCE
