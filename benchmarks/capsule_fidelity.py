@@ -328,7 +328,12 @@ def jam(
     return out
 
 
-def jam_mjx(speed_mm_s: float = 10.0, h0_mm: float = 42.0, timestep: float = 1e-4) -> dict:
+def jam_mjx(
+    speed_mm_s: float = 10.0,
+    h0_mm: float = 42.0,
+    timestep: float = 1e-4,
+    reps: tuple[str, ...] = ("capsule", "mesh"),
+) -> dict:
     """The jam of :func:`jam` in MJX-JAX (one world, a jitted scan): the extraction force F_z
     (constraint force on the z slide) and the tilt at the compared depths, capsule and mesh,
     vs the oracle. (MJX's per-contact forces are not read here: F_z and the tilt carry the
@@ -365,7 +370,7 @@ def jam_mjx(speed_mm_s: float = 10.0, h0_mm: float = 42.0, timestep: float = 1e-
     }
     settle = 0.3
     n = int((settle + (h0_mm - min(depths) + 0.5) / speed_mm_s) / timestep)
-    for rep in ("capsule", "mesh"):
+    for rep in reps:
         m = _planar_model(spec, rep, h0_mm, timestep)
         d0 = mujoco.MjData(m)
         mujoco.mj_forward(m, d0)
@@ -414,8 +419,34 @@ def jam_mjx(speed_mm_s: float = 10.0, h0_mm: float = 42.0, timestep: float = 1e-
             k: None if v is None else round(v["F_z_N"] / out["oracle"][k]["F_z_N"] - 1, 4)
             for k, v in out[rep].items()
         }
-        for rep in ("capsule", "mesh")
+        for rep in reps
     }
+    return out
+
+
+def diagnose(data: dict) -> dict:
+    """The extraction-force excess of each jam run (sim - oracle) against what a HORIZONTAL
+    mouth-contact normal would add: ``lambda_mouth sin|theta|`` (the oracle's mouth corner
+    presses on the tilted peg side, its normal perpendicular to the peg axis; a collision routine
+    that returns the wall's face normal instead loses that tilt). MJX-JAX's capsule-box and
+    MuJoCo C's mesh-mesh contact at the mouth edge show exactly that excess (normals read from
+    a jammed state: MJX capsule-box (0.98, +-0.20, 0.0), MuJoCo C capsule-box z = -0.008)."""
+    out = {}
+    for part, reps in (("jam", ("capsule", "mesh")), ("jam_mjx", ("capsule", "mesh"))):
+        j = data.get(part)
+        if not j:
+            continue
+        rows = {}
+        for h, orc in j["oracle"].items():
+            lam = data["jam"]["oracle"][h]["contacts_N"].get("H2R-corner/P2", 0.0)
+            th = math.radians(abs(orc["theta_deg"]))
+            row = {"horizontal_mouth_normal_excess_N": round(lam * math.sin(th), 4)}
+            for rep in reps:
+                sim = j[rep].get(h)
+                if sim:
+                    row[f"{rep}_F_z_excess_N"] = round(sim["F_z_N"] - orc["F_z_N"], 4)
+            rows[h] = row
+        out[part] = rows
     return out
 
 
@@ -477,7 +508,7 @@ def profile(episodes: int = 32, seed: int = 0) -> dict:
 
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    ap.add_argument("part", choices=("baseline", "jam", "jam_mjx", "profile"))
+    ap.add_argument("part", choices=("baseline", "jam", "jam_mjx", "profile", "diagnose"))
     ap.add_argument("--episodes", type=int, default=256)
     ap.add_argument("--batch", type=int, default=256)
     ap.add_argument("--note", default="")
@@ -487,6 +518,11 @@ def main(argv: list[str] | None = None) -> int:
     from peghole_mjx.provenance import provenance
 
     data = json.loads(OUT.read_text()) if OUT.exists() else {}
+    if args.part == "diagnose":
+        data["diagnosis"] = diagnose(data)
+        OUT.write_text(json.dumps(data, indent=2, default=float) + "\n")
+        print(json.dumps(data["diagnosis"], indent=2))
+        return 0
     if args.part == "baseline":
         part = baseline(args.episodes, args.batch)
     elif args.part == "profile":

@@ -92,11 +92,20 @@ def measure(name: str, rep: str, compile_worlds: int = 8, contact_cap: int | Non
 
     from peghole_mjx import envs
     from peghole_mjx._mjx import mjx
+    from peghole_mjx.geometry import mjcf
 
     over = {"representation": rep}
+    saved = dict(mjcf.CONTACT_CAPS)
     if contact_cap is not None:
         over["contact_cap"] = contact_cap
-    env = envs.load(name, config_overrides=over)
+        # a trade-off measurement may go below the measured maximum (the env refuses that)
+        kind = "dual" if name == "DualExtract" else "rect"
+        mjcf.CONTACT_CAPS[(kind, rep)] = mjcf.ContactCap(measured_max=0, cap=contact_cap)
+    try:
+        env = envs.load(name, config_overrides=over)
+    finally:
+        mjcf.CONTACT_CAPS.clear()
+        mjcf.CONTACT_CAPS.update(saved)
     mx = env.mjx_model
     key = jax.random.PRNGKey(0)
     shape = jax.eval_shape(env.reset, key)

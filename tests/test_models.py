@@ -222,3 +222,34 @@ def test_ik_reports_unreachable_targets():
     s = mjcf.build_scene(PRESETS["rect-1"], ik=False)
     with pytest.raises(RuntimeError, match="IK did not converge"):
         mjcf.solve_tool_ik(s, np.array([3.0, 0.0, 0.2]), max_iter=50)
+
+
+def test_cli_bad_representation_and_cap_are_one_line_errors(tmp_path):
+    import subprocess
+    import sys
+
+    for args, msg in (
+        (["check", "--preset", "dual-2", "--representation", "sphere"], "unknown collision"),
+        (["build", "--preset", "dual-2", "--contact-cap", "3", "--out", str(tmp_path)], "below"),
+    ):
+        res = subprocess.run(
+            [sys.executable, "-m", "peghole_mjx.cli", "models", *args],
+            capture_output=True,
+            text=True,
+        )
+        lines = [ln for ln in res.stderr.splitlines() if ln.startswith("peghole: error")]
+        assert res.returncode == 2 and len(lines) == 1 and msg in lines[0], res.stderr
+
+
+def test_capsule_mouth_lips_keep_the_clearance(monkeypatch):
+    """The experimental rounded mouth lips (parts.LIP_RADIUS_MM > 0; off by default) add one
+    capsule per wall and keep the effective clearance band."""
+    from peghole_mjx.geometry import parts
+
+    spec = PRESETS["dual-2"]
+    monkeypatch.setattr(parts, "LIP_RADIUS_MM", 0.3)
+    m = free_peg_model(spec, representation="capsule")
+    assert m.npair == 2 * (2 * spec.n_sides + 1)
+    lo, hi = effective_clearance_range_mm(spec, m)
+    c = spec.clearance_mm
+    assert abs(lo / c - 1) <= CLEARANCE_TOLERANCE and abs(hi / c - 1) <= CLEARANCE_TOLERANCE

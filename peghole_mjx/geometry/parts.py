@@ -111,6 +111,27 @@ def resolve_representation(
     return rep
 
 
+#: radius of the rounded mouth lips of the capsule holes (0: none, the mouth edge is the walls'
+#: box edge): a capsule along each wall's top inner edge, its inner surface at distance R
+LIP_RADIUS_MM = 0.0
+#: a quarter turn about x: a capsule's axis (local z) onto the local y
+_QUAT_X_M90 = np.array([np.cos(-np.pi / 4), np.sin(-np.pi / 4), 0.0, 0.0])
+
+
+def _quat_mul(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Hamilton product a * b of (w, x, y, z) quaternions."""
+    w1, x1, y1, z1 = a
+    w2, x2, y2, z2 = b
+    return np.array(
+        [
+            w1 * w2 - x1 * x2 - y1 * y2 - z1 * z2,
+            w1 * x2 + x1 * w2 + y1 * z2 - z1 * y2,
+            w1 * y2 - x1 * z2 + y1 * w2 + z1 * x2,
+            w1 * z2 + x1 * y2 - y1 * x2 + z1 * w2,
+        ]
+    )
+
+
 def _quat_z(angle: float) -> np.ndarray:
     """Unit quaternion (w, x, y, z) of a rotation by ``angle`` about z."""
     return np.array([np.cos(angle / 2), 0.0, 0.0, np.sin(angle / 2)])
@@ -282,6 +303,8 @@ def hole_parts(spec: PegHoleSpec, representation: str | None = None) -> list[Con
             extra = spec.peg_radii_mm[i] * MM if rep == "capsule" else 0.0
             bottom = depth + extra
             half_t = (R + wall) * np.tan(np.pi / n)  # reaches the neighbour's outer corner
+            lip = LIP_RADIUS_MM * MM if rep == "capsule" else 0.0
+            top = 2 * lip  # the wall boxes start below the lips
             for k in range(n):
                 phi = 2 * np.pi * (k + 0.5) / n
                 rc = R + wall / 2
@@ -289,12 +312,26 @@ def hole_parts(spec: PegHoleSpec, representation: str | None = None) -> list[Con
                     ConvexPart(
                         f"hole{i + 1}_wall{k:02d}",
                         "box",
-                        pos=np.array([cx + rc * np.cos(phi), cy + rc * np.sin(phi), -bottom / 2]),
-                        half_size=np.array([wall / 2, half_t, bottom / 2]),
+                        pos=np.array(
+                            [cx + rc * np.cos(phi), cy + rc * np.sin(phi), -(bottom + top) / 2]
+                        ),
+                        half_size=np.array([wall / 2, half_t, (bottom - top) / 2]),
                         group=i,
                         quat=_quat_z(phi),
                     )
                 )
+                if lip:
+                    rl = R + lip
+                    parts.append(
+                        ConvexPart(
+                            f"hole{i + 1}_lip{k:02d}",
+                            "capsule",
+                            pos=np.array([cx + rl * np.cos(phi), cy + rl * np.sin(phi), -lip]),
+                            half_size=np.array([lip, R * np.tan(np.pi / n)]),
+                            group=i,
+                            quat=_quat_mul(_quat_z(phi), _QUAT_X_M90),
+                        )
+                    )
         parts.append(
             ConvexPart(
                 f"hole{i + 1}_floor",
