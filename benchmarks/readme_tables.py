@@ -289,6 +289,85 @@ def compliance_sweep() -> str:
     return "\n".join([*lines, "", "Runs: " + "; ".join(notes) + "."])
 
 
+def _cell_name(c: dict) -> str:
+    return (
+        f"{c['preset']}, K_theta {c['k_rot_Nm_rad']:g} N m/rad, K_lat {c['k_lat_N_m']:g} N/m, "
+        f"beta0 {c['beta0_deg']:+g} deg, theta0 {c['theta0_deg']:g} deg, mu {c['mu']:g}"
+    )
+
+
+def _ci(x: dict) -> str:
+    return f"{x['value']:.1f} % [{x['ci95'][0]:.1f}, {x['ci95'][1]:.1f}]"
+
+
+def compliance_findings() -> str:
+    """R1 / R2 against the sweep: best match, the defaults' cells, the largest reduction,
+    agreement with the oracle, peak magnitudes against the thesis's 12 N."""
+    lines = []
+    rect = RESULTS / "compliance_sweep_rect.json"
+    if rect.exists():
+        d = json.loads(rect.read_text())
+        cells = [c for c in d["cells"] if c["reduction_tip_vs_top_pct"]["value"] is not None]
+        b = d["best_match_R1"]
+        best = next(c for c in cells if all(c[k] == v for k, v in b["cell"].items()))
+        lines.append(
+            f"- **R1 (rect, thesis 77.1 % tip vs top, 55.6 % tip vs centre)**: closest cell "
+            f"{_cell_name(best)}: {_ci(b['reduction_tip_vs_top_pct'])} and "
+            f"{_ci(b['reduction_tip_vs_centre_pct'])}; the oracle predicts "
+            f"{b['quasi_static']['reduction_tip_vs_top_pct']:.1f} % and "
+            f"{b['quasi_static']['reduction_tip_vs_centre_pct']:.1f} %. 77.1 % is "
+            f"{'inside' if b['r1_in_ci95_tip_vs_top'] else 'outside'} that cell's interval."
+        )
+        top = max(cells, key=lambda c: c["reduction_tip_vs_top_pct"]["value"])
+        lines.append(
+            f"- Largest simulated tip-vs-top reduction: {_ci(top['reduction_tip_vs_top_pct'])} "
+            f"({_cell_name(top)})."
+        )
+        for c in cells:
+            if c["k_rot_Nm_rad"] == 300.0 and c["k_lat_N_m"] == 300.0 and c["theta0_deg"] == 0:
+                lines.append(
+                    f"- The project's default stiffnesses ({_cell_name(c)}): "
+                    f"{_ci(c['reduction_tip_vs_top_pct'])} tip vs top (oracle "
+                    f"{c['quasi_static']['reduction_tip_vs_top_pct']:.1f} %)."
+                )
+        big = [c for c in cells if c["quasi_static"]["reduction_tip_vs_top_pct"] >= 50]
+        agree = [
+            c
+            for c in big
+            if abs(
+                c["reduction_tip_vs_top_pct"]["value"]
+                - c["quasi_static"]["reduction_tip_vs_top_pct"]
+            )
+            <= 10
+        ]
+        lines.append(
+            f"- Cells where the oracle predicts >= 50 % tip vs top: {len(big)}; the simulation "
+            f"agrees within 10 points in {len(agree)} of them."
+        )
+        peak = max(max(c["peak_fz_N"].values()) for c in cells)
+        lines.append(
+            f"- Peak F_z magnitudes: at most {peak:.2f} N in the swept cells, against the "
+            'thesis\'s "over 12 N" for the Ch 2-3 method on the real robot (E13: a plausibility '
+            "check, not a target)."
+        )
+    dual = RESULTS / "compliance_sweep_dual.json"
+    if dual.exists():
+        d = json.loads(dual.read_text())
+        for c in d["cells"]:
+            q, r = c["quasi_static"], c["reduction_tip_vs_top_pct"]
+            if r["value"] is None:
+                continue
+            pk = c["peak_fz_N"]
+            order = list(pk.values())
+            lines.append(
+                f"- **R2 (dual)**, {_cell_name(c)}: oracle tip vs top "
+                f"{q['reduction_tip_vs_top_pct']:.1f} %, simulated {_ci(r)}; simulated peaks "
+                f"tip / centre / top {' / '.join(f'{v:.3f}' for v in order)} N "
+                f"({'ordered as R2' if order[0] < order[1] < order[2] else 'not ordered as R2'})."
+            )
+    return "\n".join(lines)
+
+
 POLICIES = ROOT / "peghole_mjx" / "policies"
 
 
@@ -491,6 +570,7 @@ TABLES = {
     "env_rollouts": env_rollouts,
     "contact_check": contact_check,
     "compliance_sweep": compliance_sweep,
+    "compliance_findings": compliance_findings,
     "throughput": throughput,
     "roofline": roofline,
     "cost": cost,

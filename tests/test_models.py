@@ -19,7 +19,12 @@ from peghole_mjx.geometry.check import (
     effective_clearance_range_mm,
     free_peg_model,
 )
-from peghole_mjx.geometry.parts import REPRESENTATIONS, peg_parts, resolve_representation
+from peghole_mjx.geometry.parts import (
+    RECT_REPRESENTATIONS,
+    REPRESENTATIONS,
+    peg_parts,
+    resolve_representation,
+)
 from peghole_mjx.geometry.specs import MM, PRESETS
 
 REPO = Path(__file__).resolve().parents[1]
@@ -157,9 +162,15 @@ def test_representations_build_their_collision_geometry():
     assert bottom - top == pytest.approx(spec.peg_radii_mm[0] * MM, abs=1e-9)
     cyl = mjcf.compile_scene(spec, robot=False, representation="cylinder")
     assert cyl.geom_type[cyl.geom("peg1").id] == geom.mjGEOM_CYLINDER
-    # the rect parts are boxes whatever is asked
-    rect = mjcf.compile_scene(PRESETS["rect-2"], robot=False, representation="capsule")
+    # rect: "box" pairs the peg box with the wall boxes; "edges" (the default) pairs edge
+    # capsules with boxes (and parallel capsules with each other) and never box with box
+    rect = mjcf.compile_scene(PRESETS["rect-2"], robot=False, representation="box")
     assert (rect.geom_type[list(rect.pair_geom1)] == geom.mjGEOM_BOX).all()
+    edges = mjcf.compile_scene(PRESETS["rect-2"], robot=False)
+    t1, t2 = edges.geom_type[list(edges.pair_geom1)], edges.geom_type[list(edges.pair_geom2)]
+    assert edges.npair == 28 and not ((t1 == geom.mjGEOM_BOX) & (t2 == geom.mjGEOM_BOX)).any()
+    with pytest.raises(UserInputError, match="dual parts'"):
+        mjcf.compile_scene(PRESETS["rect-2"], robot=False, representation="capsule")
     for m in (mesh, cap):  # masses add up in every representation
         assert m.body_subtreemass[m.body("peg").id] == pytest.approx(spec.peg_mass_kg)
 
@@ -194,7 +205,7 @@ def test_check_reports_each_representation_without_mjx():
 @pytest.mark.parametrize("name", sorted(PRESETS))
 def test_drop_test_mujoco_c_reaches_the_bottom(name):
     spec = PRESETS[name]
-    for rep in REPRESENTATIONS if name.startswith("dual") else ["box"]:
+    for rep in REPRESENTATIONS if name.startswith("dual") else RECT_REPRESENTATIONS:
         gap = drop_gap_mujoco(free_peg_model(spec, representation=rep), spec.hole_depth_mm * MM)
         assert abs(gap) < 1.0, rep
 

@@ -40,6 +40,11 @@ def add_parser(subparsers) -> None:
     w.add_argument("--repeats", type=int, default=None, help="draws per cell and L_C (16)")
     w.add_argument("--seed", type=int, default=0)
     w.add_argument("--batch-worlds", type=int, default=96, help="worlds per compiled batch")
+    w.add_argument(
+        "--representation",
+        default=None,
+        help="collision representation (default: rect edges, dual mesh)",
+    )
     w.add_argument("--out", required=True, type=Path, help="output folder (resumable)")
     w.set_defaults(func=run_sweep)
 
@@ -141,7 +146,18 @@ def run_sweep(args: argparse.Namespace) -> int:
     grid.check()
     if grid.geometry != args.geometry:
         raise UserInputError(f"the presets are not {args.geometry} presets")
-    cfg = sweep.SweepConfig(grid=grid, seed=args.seed, batch_worlds=args.batch_worlds)
+    from peghole_mjx.experiments.compliance import ExperimentConfig
+    from peghole_mjx.geometry.parts import resolve_representation
+    from peghole_mjx.geometry.specs import PRESETS
+
+    if args.representation is not None:
+        resolve_representation(PRESETS[grid.presets[0]], args.representation, impl="jax")
+    cfg = sweep.SweepConfig(
+        grid=grid,
+        seed=args.seed,
+        batch_worlds=args.batch_worlds,
+        experiment=ExperimentConfig(representation=args.representation),
+    )
     result = sweep.run_sweep(cfg, args.out)
     for f in sweep.write_figures(result, args.out):
         print(f)

@@ -33,15 +33,15 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
         "MuJoCo distance queries, min and max over directions (pass: within 2 %% of nominal in "
         "every direction), a free-peg drop test in MuJoCo C and MJX-JAX (pass: tip within 1 mm "
         "of the hole bottom; cylinder: MuJoCo C only), the geoms, contact pairs, MJX contacts "
-        "allocated, constraint rows and contact cap. Dual presets are checked in every "
-        "representation (capsule, mesh, cylinder) unless --representation is given; rect parts "
-        "are boxes. Exit status 0 only if every row passes.",
+        "allocated, constraint rows and contact cap. Every preset is checked in each of its "
+        "representations (dual: capsule, mesh, cylinder; rect: edges, box) unless "
+        "--representation is given. Exit status 0 only if every row passes.",
     )
     c.add_argument(
         "--representation",
         action="append",
-        help="dual collision representation to check: capsule, mesh or cylinder (repeatable); "
-        "default: all three",
+        help="collision representation to check (repeatable): dual capsule, mesh or cylinder; "
+        "rect edges or box; default: all of the preset's",
     )
     c.add_argument("--json", action="store_true", help="print a JSON list instead of a table")
     c.add_argument(
@@ -75,8 +75,8 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     b.add_argument("--friction", type=float, help="Coulomb friction (default: preset's)")
     b.add_argument(
         "--representation",
-        help="dual collision representation: capsule (default), mesh (exact 16-gon parts) or "
-        "cylinder (MuJoCo Warp only); rect parts are boxes",
+        help="collision representation: dual capsule (default), mesh (exact 16-gon parts) or "
+        "cylinder (MuJoCo Warp only); rect edges (default: edge capsules) or box",
     )
     b.add_argument(
         "--contact-cap",
@@ -126,15 +126,24 @@ def cmd_check(args: argparse.Namespace) -> int:
     from tqdm import tqdm
 
     from peghole_mjx.geometry.check import check_spec
-    from peghole_mjx.geometry.parts import REPRESENTATIONS, resolve_representation
+    from peghole_mjx.geometry.parts import (
+        RECT_REPRESENTATIONS,
+        REPRESENTATIONS,
+        resolve_representation,
+    )
 
     names = args.preset or list(PRESETS)
-    reps = args.representation or list(REPRESENTATIONS)
     jobs = []
     for name in names:
         spec = PRESETS[name]
-        # validates every name first (one line for an unknown one); rect: one "box" row
-        got = list(dict.fromkeys(resolve_representation(spec, r) for r in reps))
+        own = RECT_REPRESENTATIONS if spec.kind == "rect" else REPRESENTATIONS
+        asked = args.representation or list(own)
+        for r in asked:  # one line for an unknown name
+            if r not in (*REPRESENTATIONS, *RECT_REPRESENTATIONS):
+                resolve_representation(spec, r)
+        got = [r for r in dict.fromkeys(asked) if r in own]
+        if not got:  # only the other geometry's representations were asked for
+            resolve_representation(spec, asked[0])
         jobs += [(name, spec, r) for r in got]
     rows = []
     for name, spec, rep in tqdm(
