@@ -266,8 +266,7 @@ def load_policy(name: str | Path) -> PolicyBundle:
             raise CorruptFileError(f"{path}/params.npz: array {i} has dtype {x.dtype}")
         if np.issubdtype(x.dtype, np.floating) and not np.all(np.isfinite(x)):
             raise CorruptFileError(f"{path}/params.npz: array {i} holds NaN or infinity")
-    placed = [jnp.asarray(x, dtype=t.dtype) for x, t in zip(leaves, tleaves, strict=True)]
-    params = jax.tree.unflatten(treedef, placed)
+    params = jax.tree.unflatten(treedef, [jnp.asarray(x) for x in leaves])
     return PolicyBundle(path=path, meta=meta, params=params)
 
 

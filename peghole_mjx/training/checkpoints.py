@@ -17,8 +17,12 @@ from __future__ import annotations
 import hashlib
 import json
 import re
+import shutil
 import sys
+import zipfile
+from collections.abc import Callable
 from pathlib import Path
+from typing import Any
 
 from peghole_mjx import fileio
 from peghole_mjx.errors import CorruptFileError
@@ -98,7 +102,8 @@ def set_aside(path: Path, reason: str) -> Path:
         dest = path.with_name(f"{path.name}.corrupt{n}")
     path.rename(dest)
     print(
-        f"warning: checkpoint {path.name} is corrupt ({reason}): moved to {dest.name}",
+        f"warning: checkpoint {path.name} is corrupt ({reason}): moved to {dest.name}; "
+        "falling back to the checkpoint before it",
         file=sys.stderr,
     )
     return dest
@@ -111,6 +116,49 @@ def prune_states(ckpt_dir: Path, keep: int = KEEP_STATES) -> None:
     for old in full[:-keep] if keep else full:
         for f in STATE_FILES:
             (old / f).unlink(missing_ok=True)
+
+
+def write(ckpt_dir: Path, step: int, write_files: Callable[[Path], None]) -> Path:
+    """Write checkpoint ``step``: ``write_files(folder)`` fills ``step_N.tmp/``, which is then
+    sealed (manifest), fsynced and renamed to ``step_N/``; then :func:`prune_states`. A kill or
+    a failed write at any point leaves the earlier checkpoints as they were."""
+    from peghole_mjx import fileio
+
+    final = Path(ckpt_dir) / checkpoint_name(step)
+    tmp = final.with_name(final.name + ".tmp")
+    if tmp.exists():
+        shutil.rmtree(tmp)
+    tmp.mkdir(parents=True)
+    write_files(tmp)
+    seal(tmp)
+    fileio.replace_dir(tmp, final)
+    prune_states(Path(ckpt_dir))
+    return final
+
+
+#: what a damaged checkpoint raises while it is verified or loaded
+CORRUPTION = (CorruptFileError, zipfile.BadZipFile, EOFError, json.JSONDecodeError)
+
+
+def newest_valid(ckpt_dir: Path, load: Callable[[Path], Any]) -> tuple[Path, Any] | None:
+    """``(path, load(path))`` of the newest checkpoint with a state that verifies and loads,
+    or None. Each newer one that fails (:data:`CORRUPTION`, or a ValueError of ``np.load``)
+    is set aside (:func:`set_aside`) with a warning; other errors (e.g. a checkpoint that does
+    not fit the run's config) are raised."""
+    from peghole_mjx.errors import UserInputError
+
+    full = [p for p in checkpoint_dirs(ckpt_dir) if has_state(p)]
+    for path in reversed(full):
+        try:
+            verify(path, (*POLICY_FILES, *STATE_FILES))
+            loaded = load(path)
+        except (*CORRUPTION, ValueError, KeyError) as exc:
+            if isinstance(exc, UserInputError) and not isinstance(exc, CorruptFileError):
+                raise  # intact, but not this run's
+            set_aside(path, " ".join(str(exc).split()) or type(exc).__name__)
+            continue
+        return path, loaded
+    return None
 
 
 def newest_policy_checkpoint(ckpt_dir: Path) -> Path | None:

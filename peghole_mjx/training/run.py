@@ -29,10 +29,8 @@ import csv
 import json
 import math
 import os
-import shutil
 import sys
 import time
-import zipfile
 from pathlib import Path
 from typing import Any
 
@@ -80,14 +78,6 @@ METRIC_COLUMNS = (
 )
 #: eval success that defines "time to success" (issue targets: 95 %)
 SUCCESS_THRESHOLD = 0.95
-
-
-def _atomic_dir(final: Path) -> Path:
-    tmp = final.with_name(final.name + ".tmp")
-    if tmp.exists():
-        shutil.rmtree(tmp)
-    tmp.mkdir(parents=True)
-    return tmp
 
 
 class TrainingRun:
@@ -159,35 +149,27 @@ class TrainingRun:
 
     def find_resume_point(self):
         """``(path, carry, sched)`` of the newest checkpoint whose state verifies and loads,
-        or None. Corrupt newer ones are set aside with a warning."""
-        full = [p for p in checkpoints.checkpoint_dirs(self.ckpt_dir) if checkpoints.has_state(p)]
-        for path in reversed(full):
-            try:
-                checkpoints.verify(path, (*checkpoints.POLICY_FILES, *checkpoints.STATE_FILES))
-                carry, sched = self.load_checkpoint(path)
-            except (CorruptFileError, zipfile.BadZipFile, EOFError, ValueError, KeyError) as exc:
-                if isinstance(exc, UserInputError) and not isinstance(exc, CorruptFileError):
-                    raise  # the checkpoint is intact but does not fit this config
-                checkpoints.set_aside(path, " ".join(str(exc).split()) or type(exc).__name__)
-                continue
-            return path, carry, sched
-        return None
+        or None; corrupt newer ones are set aside with a warning (``checkpoints.newest_valid``)."""
+        found = checkpoints.newest_valid(self.ckpt_dir, self.load_checkpoint)
+        if found is None:
+            return None
+        path, (carry, sched) = found
+        return path, carry, sched
 
     # ------------------------------------------------------------------ state I/O
     def save_checkpoint(self, carry, step: int, sched: dict[str, Any]) -> Path:
-        """Write ``checkpoints/step_N`` completely (fsynced, sealed, renamed), then drop the
-        state of all but the :data:`~checkpoints.KEEP_STATES` newest checkpoints."""
-        final = self.ckpt_dir / checkpoints.checkpoint_name(step)
-        tmp = _atomic_dir(final)
-        save_policy(tmp, self.trainer.policy_params(carry), self._policy_meta(step), atomic=False)
-        leaves = jax.tree.leaves(jax.device_get(carry))
-        arrays = {f"leaf_{i:05d}": x for i, x in enumerate(leaves)}
-        fileio.write_bytes_with(tmp / "state.npz", lambda f: np.savez(f, **arrays))
-        fileio.write_text(tmp / "state.json", json.dumps({"step": step, **sched}, indent=2) + "\n")
-        checkpoints.seal(tmp)
-        fileio.replace_dir(tmp, final)
-        checkpoints.prune_states(self.ckpt_dir)
-        return final
+        """Write ``checkpoints/step_N`` completely (``checkpoints.write``: fsynced, sealed,
+        renamed); the two newest checkpoints keep their state."""
+        params = self.trainer.policy_params(carry)
+        arrays = {f"leaf_{i:05d}": x for i, x in enumerate(jax.tree.leaves(jax.device_get(carry)))}
+
+        def write_files(folder: Path) -> None:
+            save_policy(folder, params, self._policy_meta(step), atomic=False)
+            fileio.write_bytes_with(folder / "state.npz", lambda f: np.savez(f, **arrays))
+            text = json.dumps({"step": step, **sched}, indent=2) + "\n"
+            fileio.write_text(folder / "state.json", text)
+
+        return checkpoints.write(self.ckpt_dir, step, write_files)
 
     def load_checkpoint(self, path: Path):
         template = self.trainer.init_carry(self.cfg.seed)
@@ -215,6 +197,8 @@ class TrainingRun:
         sched = json.loads((path / "state.json").read_text())
         if not isinstance(sched, dict) or not isinstance(sched.get("step"), int):
             raise CorruptFileError(f"{path}/state.json holds no step")
+        if not {"wall_s", "n_eval"} <= set(sched):
+            raise CorruptFileError(f"{path}/state.json lacks the evaluation schedule")
         return carry, sched
 
     def _policy_meta(self, step: int) -> dict[str, Any]:
@@ -289,8 +273,10 @@ class TrainingRun:
             if lock is not self.lock:
                 lock.release()
 
-    def _run(self, resume: bool) -> dict[str, Any]:
-        cfg, trainer = self.cfg, self.trainer
+    def prepare(self, resume: bool):
+        """Check the run folder, find the checkpoint to resume from (None: from the start),
+        and only then rewrite the run's records: run.json (with a validated change) and
+        metrics.csv, truncated to the checkpoint's step (emptied when starting over)."""
         self.out.mkdir(parents=True, exist_ok=True)
         if not resume and (self.out / "run.json").exists():
             raise UserInputError(
@@ -306,11 +292,15 @@ class TrainingRun:
             )
             self._pending_meta = None
         if not (self.out / "run.json").exists():
-            meta = {"config": cfg.as_dict(), "network": trainer.network, **provenance()}
+            meta = {"config": self.cfg.as_dict(), "network": self.trainer.network, **provenance()}
             fileio.write_text(self.out / "run.json", json.dumps(meta, indent=2) + "\n")
         if resume:  # rows after the checkpoint (all rows when starting over) are redone
             self._write_rows(self._read_rows(upto_step=found[2]["step"]) if found else [])
+        return found
 
+    def _run(self, resume: bool) -> dict[str, Any]:
+        cfg, trainer = self.cfg, self.trainer
+        found = self.prepare(resume)
         tb = _tensorboard(self.out / "tb")
         t_start = time.perf_counter()
         if found is not None:
