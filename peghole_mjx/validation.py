@@ -201,3 +201,13 @@ def dumps(obj: Any, **kw) -> str:
     import json
 
     return json.dumps(json_safe(obj), allow_nan=False, **kw)
+
+
+def loads(text: str) -> Any:
+    """Parse strict JSON: a bare ``NaN`` or ``Infinity`` (not JSON) raises ValueError."""
+    import json
+
+    def bare(name: str):
+        raise ValueError(f"not JSON: bare {name}")
+
+    return json.loads(text, parse_constant=bare)

@@ -1,7 +1,6 @@
 """RectExtract and DualExtract: API, determinism, randomised resets, failure paths, rewards."""
 
 import functools
-import json
 import subprocess
 import sys
 
@@ -14,6 +13,7 @@ from peghole_mjx import envs
 from peghole_mjx.envs.base import REWARD_WEIGHTS, reward_terms
 from peghole_mjx.envs.rollout import random_policy, rollout, scripted_policy
 from peghole_mjx.errors import UserInputError
+from peghole_mjx.validation import loads as strict_json  # no bare NaN
 
 N_WORLDS = 8
 
@@ -284,7 +284,7 @@ def test_cli_rollout_scripted_rect_64_episodes():
         timeout=900,
     )
     assert res.returncode == 0, res.stderr
-    out = json.loads(res.stdout)
+    out = strict_json(res.stdout)
     for key in (
         "success_rate",
         "mean_time_s",

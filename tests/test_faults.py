@@ -27,6 +27,7 @@ from peghole_mjx.training import checkpoints
 from peghole_mjx.training.config import TrainConfig, load_train_config
 from peghole_mjx.training.lock import RunLock, _proc_start
 from peghole_mjx.validation import RANGES, dumps, json_safe
+from peghole_mjx.validation import loads as strict_json  # no bare NaN
 
 TINY = {
     "num_envs": 8,
@@ -75,13 +76,6 @@ def full_disk(monkeypatch):
         raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC))
 
     monkeypatch.setattr(fileio.os, "fsync", enospc)
-
-
-def strict_json(text: str):
-    def bare(name):
-        raise AssertionError(f"bare {name} in JSON output")
-
-    return json.loads(text, parse_constant=bare)
 
 
 def fake_checkpoint(ckpt_dir, step: int, fill: float = 1.0):
@@ -442,6 +436,8 @@ def test_json_output_never_holds_bare_nan():
     data = {"a": float("nan"), "b": [1.0, float("inf")], "c": np.float32("nan"), "d": np.ones(2)}
     assert json_safe(data) == {"a": None, "b": [1.0, None], "c": None, "d": [1.0, 1.0]}
     assert strict_json(dumps(data)) == json_safe(data)
+    with pytest.raises(ValueError, match="bare NaN"):
+        strict_json('{"a": NaN}')
 
 
 # ---------------------------------------------------------------------- 7. evaluate --out

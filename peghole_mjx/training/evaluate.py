@@ -71,7 +71,9 @@ def _keyed_dir(root: Path, key: dict[str, Any]) -> Path:
             )
     else:
         root.mkdir(parents=True, exist_ok=True)
-        key_file.write_text(json.dumps(key, indent=2) + "\n")
+        from peghole_mjx import fileio
+
+        fileio.write_text(key_file, json.dumps(key, indent=2) + "\n")
     return root
 
 
