@@ -32,7 +32,8 @@ class Range:
     lo_open: bool = False
     hi_open: bool = False
     integer: bool = False
-    why: str = ""  # appended to the message (e.g. which limit it is)
+    why_lo: str = ""  # appended to the message of a value below the range
+    why_hi: str = ""  # ... and above it (e.g. which limit it is)
 
     def describe(self) -> str:
         kind = "an integer" if self.integer else "a finite number"
@@ -56,10 +57,9 @@ class Range:
             return f"must be {self.describe()}, got {value!r}"
         lo_bad = self.lo is not None and (value <= self.lo if self.lo_open else value < self.lo)
         hi_bad = self.hi is not None and (value >= self.hi if self.hi_open else value > self.hi)
+        why = self.why_lo if lo_bad else self.why_hi if hi_bad else ""
         if lo_bad or hi_bad:
-            return f"must be {self.describe()}, got {value!r}" + (
-                f" ({self.why})" if self.why else ""
-            )
+            return f"must be {self.describe()}, got {value!r}" + (f" ({why})" if why else "")
         return None
 
 
@@ -75,17 +75,19 @@ SEED = Range(0, 2**32 - 1, integer=True)
 #: name -> allowed range (names as the user sees them: option or config key)
 RANGES: dict[str, Range] = {
     # physics
-    "friction": Range(0.0, 2.0, why="Coulomb friction of the contact pairs"),
+    "friction": Range(0.0, 2.0),
     "mass_kg": Range(0.0, 100.0, lo_open=True),
-    "size_mm": Range(0.0, MAX_PART_MM, lo_open=True, why="the limit of the robot's reach"),
+    "size_mm": Range(0.0, MAX_PART_MM, lo_open=True, why_hi="the limit of the robot's reach"),
     "clearance_mm": Range(0.0, 50.0, lo_open=True),
     "warn_fraction": Range(0.0, 1.0, lo_open=True),
     "depth_mm": POSITIVE,
     # CoACD (its documented ranges; a threshold outside aborts or never ends)
-    "threshold": Range(0.01, 1.0, why="CoACD's concavity threshold range"),
+    "threshold": Range(
+        0.01, 1.0, why_lo="CoACD's documented range", why_hi="CoACD's documented range"
+    ),
     "resolution": Range(100, 100_000, integer=True),
     "preprocess_resolution": Range(20, 100, integer=True),
-    "max_ch_vertex": Range(4, 1024, integer=True, why="a hull needs at least 4 vertices"),
+    "max_ch_vertex": Range(4, 1024, integer=True, why_lo="a hull needs at least 4 vertices"),
     "max_convex_hull": Range(-1, 10_000, integer=True),  # -1: no cap; 0 is refused below
     "mcts_iterations": Range(1, 10_000, integer=True),
     # runs

@@ -134,7 +134,7 @@ def _require_positive(values: dict[str, float]) -> None:
         if v > limit.hi:
             raise InfeasibleGeometryError(
                 "within reach" if name.endswith("_mm") else "mass limit",
-                f"{name} exceeds {limit.hi:g}" + (f" ({limit.why})" if limit.why else ""),
+                f"{name} exceeds {limit.hi:g}" + (f" ({limit.why_hi})" if limit.why_hi else ""),
                 {name: v},
             )
 
