@@ -36,7 +36,17 @@ COLUMNS = (
     "date",
 )
 ENGINES = ("mjx-jax", "mjx-warp", "mujoco-c", "mujoco-c-rollout", "pybullet")
-SCENES = {"rect": "RectExtract", "dual": "DualExtract"}
+SCENES = {
+    "rect": "RectExtract",
+    "dual": "DualExtract",  # the env's default collision representation: capsule
+    "dual-mesh": "DualExtract",
+    "dual-cylinder": "DualExtract",
+}
+#: env config overrides of the scene variants (collision representations, issue 20)
+SCENE_OVERRIDES: dict[str, dict] = {
+    "dual-mesh": {"representation": "mesh"},
+    "dual-cylinder": {"representation": "cylinder"},  # MuJoCo Warp (and C) only
+}
 
 #: packages named in the compact ``versions`` string (short name, distribution name)
 _VERSION_PACKAGES = (

@@ -3,7 +3,9 @@
 
 Writes ``benchmarks/results/env_rollouts.json`` (device, versions, date, per env and policy the
 keys of ``peghole envs rollout --json`` plus compile time and steps/s). Run:
-``python benchmarks/env_rollouts.py [--episodes 64]``.
+``python benchmarks/env_rollouts.py [--episodes 64]``. Each row names the env's collision
+representation; rows without one (before 2026-11-29) were measured on the dual mesh scene, then
+the only one.
 """
 
 from __future__ import annotations
@@ -41,6 +43,7 @@ def main() -> None:
             row = {
                 "env": name,
                 "preset": env.config.preset,
+                "representation": env.representation,
                 "policy": policy,
                 **res.summary().as_dict(),
                 "compile_s": round(res.compile_s, 1),

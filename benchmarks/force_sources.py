@@ -11,6 +11,10 @@ Writes ``benchmarks/results/force_sources_<env>_<device>.json``::
 
     python benchmarks/force_sources.py                 # RectExtract, 32 episodes per variant
     python benchmarks/force_sources.py --env dual --episodes 16
+
+The committed dual file was measured on the mesh scene (then the only one): reproduce it with
+``--representation mesh`` (DualExtract's default is now the capsule scene, README "Fidelity of
+the capsule representation").
 """
 
 from __future__ import annotations
@@ -69,6 +73,9 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--episodes", type=int, default=32)
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("--only", nargs="*", choices=list(VARIANTS), help="run these variants only")
+    p.add_argument(
+        "--representation", help="dual collision representation (default: the env's, capsule)"
+    )
     args = p.parse_args(argv)
     if args.episodes < 1:
         raise SystemExit("--episodes must be >= 1")
@@ -76,6 +83,8 @@ def main(argv: list[str] | None = None) -> int:
     rows = []
     for variant in args.only or list(VARIANTS):
         overrides, speed, what = VARIANTS[variant]
+        if args.representation:
+            overrides = {**overrides, "representation": args.representation}
         env = envs.load(name, config_overrides=overrides or None)
         t0 = time.perf_counter()
         res = rollout(env, scripted_policy(env, speed), args.episodes, seed=args.seed)
@@ -96,6 +105,7 @@ def main(argv: list[str] | None = None) -> int:
     result = {
         "benchmark": "force_sources",
         "env": name,
+        "representation": env.representation,
         "episodes": args.episodes,
         "seed": args.seed,
         "device": cpu_device(),

@@ -28,17 +28,32 @@ def models_check() -> str:
         f"mujoco-mjx {data['versions'].get('mujoco-mjx')}, jax {data['versions'].get('jax')}; "
         f"{data['date']}.",
         "",
-        "| preset | nominal mm | effective mm | error % | drop gap mm (C / MJX) | MJX-JAX ok "
-        "| convex geoms | result |",
-        "|---|---|---|---|---|---|---|---|",
+        "| preset | representation | nominal mm | effective mm (min..max over directions) "
+        "| error % | drop gap mm (C / MJX) | geoms | pairs | MJX contacts | constraint rows "
+        "| contact cap | result |",
+        "|---|---|---|---|---|---|---|---|---|---|---|---|",
     ]
     for r in data["presets"]:
         mjx_gap = "-" if r["drop_test_gap_mjx_mm"] is None else f"{r['drop_test_gap_mjx_mm']:.3f}"
+        rep = r.get("representation", "-")
+        hi = r.get("effective_clearance_max_mm", r["effective_clearance_mm"])
+        err_hi = r.get("clearance_error_max_pct", r["clearance_error_pct"])
+        err = (
+            f"{r['clearance_error_pct']:+.2f}..{err_hi:+.2f}"
+            if rep != "box"
+            else f"{r['clearance_error_pct']:+.2f} (axes)"
+        )
+        eff = (
+            f"{r['effective_clearance_mm']:.4f}..{hi:.4f}"
+            if rep != "box"
+            else f"{r['effective_clearance_mm']:.4f}"
+        )
         lines.append(
-            f"| {r['preset']} | {r['nominal_clearance_mm']:.3f} | "
-            f"{r['effective_clearance_mm']:.4f} | {r['clearance_error_pct']:+.2f} | "
-            f"{r['drop_test_gap_mujoco_mm']:.3f} / {mjx_gap} | {r['mjx_jax_ok']} | "
-            f"{r['n_convex_geoms']} | {'pass' if r['passed'] else 'FAIL'} |"
+            f"| {r['preset']} | {rep} | {r['nominal_clearance_mm']:.3f} | {eff} | {err} | "
+            f"{r['drop_test_gap_mujoco_mm']:.3f} / {mjx_gap} | {r.get('n_geoms', '-')} | "
+            f"{r.get('n_pairs', '-')} | {r.get('contacts_allocated') or '-'} | "
+            f"{r.get('constraint_rows') or '-'} | {r.get('contact_cap') or 'none'} | "
+            f"{'pass' if r['passed'] else 'FAIL'} |"
         )
     return "\n".join(lines)
 
@@ -210,28 +225,68 @@ def time_to_success() -> str:
     return "\n".join(lines)
 
 
-def compliance() -> str:
-    """Peak force by compliance-centre location, reductions beside the thesis's, penetration."""
-    lines = [
-        "| preset | peak F N: tip / centre / top | tip vs top % (thesis 77.1) | "
-        "tip vs centre % (thesis 55.6) | tip < centre < top | max penetration mm "
-        "(limit) | NaN worlds | step ms | device, date |",
-        "|---|---|---|---|---|---|---|---|---|",
+def contact_check() -> str:
+    """The contact-settings table: step x settings -> contact quality (contact_check.json)."""
+    from peghole_mjx.experiments.contact_check import TABLE_HEADER, table_row
+
+    d = json.loads((RESULTS / "contact_check.json").read_text())
+    rows = [table_row(r) for r in d["runs"]]
+    return "\n".join(
+        [
+            f"Device: {d['device']}; {d['date'][:10]}; "
+            f"{len(d['runs'][0]['worlds'])} worlds per row.",
+            "",
+            TABLE_HEADER,
+            *rows,
+        ]
+    )
+
+
+def _sweep_rows(geom: str) -> list[str]:
+    d = json.loads((RESULTS / f"compliance_sweep_{geom}.json").read_text())
+
+    def red(x):
+        if x["value"] is None:
+            return "-"
+        return f"{x['value']:.1f} [{x['ci95'][0]:.1f}, {x['ci95'][1]:.1f}]"
+
+    out = []
+    for c in d["cells"]:
+        q = c["quasi_static"]
+        pk = " / ".join(f"{v:.3g}" for v in c["peak_fz_N"].values())
+        out.append(
+            f"| {c['preset']} | {c['k_rot_Nm_rad']:g} | {c['beta0_deg']:+g} | {c['mu']:g} | "
+            f"{c['regime_KxLc2_over_Ktheta']:.3g} | {pk} | {red(c['reduction_tip_vs_top_pct'])} | "
+            f"{q['reduction_tip_vs_top_pct']:.1f} | {red(c['reduction_tip_vs_centre_pct'])} | "
+            f"{q['reduction_tip_vs_centre_pct']:.1f} | "
+            f"{c.get('max_penetration_in_hole_um', c['max_penetration_um']):.1f} "
+            f"({c['penetration_limit_um']:.1f}) | "
+            f"{c['nan_worlds']} |"
+        )
+    return out
+
+
+def compliance_sweep() -> str:
+    """The regime sweep: simulated reductions (95 % CI) beside the quasi-static oracle's."""
+    head = [
+        "| preset | K_theta N m/rad | beta0 deg | mu | K_lat L_C,top^2 / K_theta | "
+        "mean peak F_z N: tip / centre / top | tip vs top % [95 % CI] (R1: 77.1) | oracle | "
+        "tip vs centre % [95 % CI] (R1: 55.6) | oracle | max penetration um (limit) | NaN worlds |",
+        "|---|---|---|---|---|---|---|---|---|---|---|---|",
     ]
+    lines = list(head)
+    notes = []
     for geom in ("rect", "dual"):
-        d = json.loads((RESULTS / f"compliance_{geom}.json").read_text())
-        step_ms = 1000 * d["config"]["sim"]["timestep"]
-        for preset, peaks in d["peak_force_N"].items():
-            tip, centre, top = (peaks[k] for k in sorted(peaks, key=float))
-            lines.append(
-                f"| {preset} | {tip:.3f} / {centre:.3f} / {top:.3f} | "
-                f"{d['reduction_tip_vs_top_pct'][preset]:.1f} | "
-                f"{d['reduction_tip_vs_centre_pct'][preset]:.1f} | "
-                f"{'yes' if d['ordering_tip_lt_centre_lt_top'][preset] else 'no'} | "
-                f"{d['max_penetration_mm'][preset]:.4f} ({d['penetration_limit_mm'][preset]}) | "
-                f"{d['nan_worlds']} | {step_ms:g} | {d['device']}, {d['date'][:10]} |"
-            )
-    return "\n".join(lines)
+        path = RESULTS / f"compliance_sweep_{geom}.json"
+        if not path.exists():
+            continue
+        d = json.loads(path.read_text())
+        lines += _sweep_rows(geom)
+        notes.append(
+            f"{geom}: {sum(c['n_worlds'] for c in d['cells'])} worlds, {d['device']}, "
+            f"{d['date'][:10]}, {d['runtime_s'] / 60:.0f} min"
+        )
+    return "\n".join([*lines, "", "Runs: " + "; ".join(notes) + "."])
 
 
 POLICIES = ROOT / "peghole_mjx" / "policies"
@@ -370,12 +425,75 @@ def rl_vs_rlcs() -> str:
     return "\n".join(lines).rstrip()
 
 
+def cost() -> str:
+    """Per-world cost by collision representation (benchmarks/cost.py)."""
+    path = RESULTS / "cost_cpu-2core.json"
+    data = json.loads(path.read_text())
+    lines = [
+        f"From [`benchmarks/results/{path.name}`](benchmarks/results/{path.name}) "
+        f"({data['device']}; {data['date']}; mujoco {data['versions'].get('mujoco')}, "
+        f"mujoco-mjx {data['versions'].get('mujoco-mjx')}, jax {data['versions'].get('jax')}). "
+        f"{data.get('note', '')}",
+        "",
+        "| scene | representation | MJX contacts | constraint rows | mjx.Data B/world "
+        "| XLA MB per world: env step | physics step | kinematics | collision "
+        "| one solver iteration | XLA MFLOP per env step | env-step compile s (8 worlds) "
+        "| H100 estimate, physics steps/s | H200 estimate | GPU measured |",
+        "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|",
+    ]
+    gpus = list(data["gpus"])
+    for e in data["entries"] + data.get("extra_entries", []):
+        x = e["xla"]
+        rep = e["representation"]
+        if e.get("contact_cap", "default") != "default":
+            rep += f" (cap {e['contact_cap']})"
+
+        def mb(k, x=x):
+            return f"{x[k]['bytes_per_world'] / 1e6:.2f}"
+
+        est = [f"{e['roofline'][g]['xla_traffic_estimate_physics_steps_per_s']:.3g}" for g in gpus]
+        lines.append(
+            f"| {e['scene']} | {rep} | {e['contacts_allocated']} | "
+            f"{e['constraint_rows']} | {e['mjx_data_bytes_per_world']} | {mb('env_step')} | "
+            f"{mb('physics_step')} | {mb('kinematics')} | {mb('collision')} | "
+            f"{mb('solver_iteration')} | {x['env_step']['flops_per_world'] / 1e6:.1f} | "
+            f"{e['env_step_compile_s']} | {est[0]} | {est[1]} | unmeasured (no GPU lent) |"
+        )
+    speed = data.get("speed") or []
+    if speed:
+        lines += [
+            "",
+            "Side by side in one run (`python benchmarks/cost.py --speed`, each row a fresh "
+            "process, the throughput sweep's chunked scan of the env step):",
+            "",
+            "| scene | representation | worlds | physics steps/s | env steps/s | compile s |",
+            "|---|---|---|---|---|---|",
+        ]
+        for r in speed:
+            lines.append(
+                f"| {r['scene']} | {r['representation']} | {r['worlds']} | "
+                f"{r['physics_steps_per_s']:.1f} | {r['env_steps_per_s']:.2f} | "
+                f"{r['compile_s']:.1f} |"
+            )
+        ratios = data.get("speed_ratio_capsule_over_mesh", {})
+        if ratios:
+            lines += [
+                "",
+                "Capsule / mesh physics steps/s: "
+                + "; ".join(f"{w} worlds {v:.1f}x" for w, v in ratios.items())
+                + ".",
+            ]
+    return "\n".join(lines)
+
+
 TABLES = {
     "models_check": models_check,
     "env_rollouts": env_rollouts,
-    "compliance": compliance,
+    "contact_check": contact_check,
+    "compliance_sweep": compliance_sweep,
     "throughput": throughput,
     "roofline": roofline,
+    "cost": cost,
     "time_to_success": time_to_success,
     "pretrained": pretrained,
     "force_sources": force_sources,

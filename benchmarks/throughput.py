@@ -75,6 +75,7 @@ from bench_common import (  # noqa: E402
     COLUMNS,
     ENGINES,
     RESULTS,
+    SCENE_OVERRIDES,
     SCENES,
     cpu_device,
     device_label,
@@ -175,7 +176,7 @@ def roofline(scenes: list[str], hlo: bool = True) -> dict:
 
     out: dict = {"gpus": GPU_BANDWIDTH, "scenes": {}}
     for scene in scenes:
-        env = envs.load(SCENES[scene])
+        env = envs.load(SCENES[scene], config_overrides=SCENE_OVERRIDES.get(scene))
         shape = jax.eval_shape(env.reset, jax.random.PRNGKey(0))
         data_b = tree_bytes(shape.data)
         state_b = tree_bytes(shape)
@@ -251,7 +252,14 @@ def print_roofline(r: dict) -> None:
 
 
 # ----------------------------------------------------------------------------- MJX engines
-def run_mjx(scene: str, worlds: int, impl: str, chunk: int, min_time: float) -> dict:
+def run_mjx(
+    scene: str,
+    worlds: int,
+    impl: str,
+    chunk: int,
+    min_time: float,
+    representation: str | None = None,
+) -> dict:
     import jax
     import jax.numpy as jnp
 
@@ -260,7 +268,9 @@ def run_mjx(scene: str, worlds: int, impl: str, chunk: int, min_time: float) -> 
     from peghole_mjx.envs.rollout import scripted_policy
 
     gpu = gpu_kind()
-    overrides = {"impl": impl}
+    overrides = {"impl": impl, **SCENE_OVERRIDES.get(scene, {})}
+    if representation:  # the env's default otherwise (dual: capsule)
+        overrides["representation"] = representation
     env = envs.load(SCENES[scene], config_overrides=overrides)
     action = scripted_policy(env)(None, None)
     n_reset = worlds if (gpu or impl == "warp") else min(worlds, 8)
@@ -470,7 +480,7 @@ def load_env_quiet(scene: str):
     import peghole_mjx._mjx  # noqa: F401
     from peghole_mjx import envs
 
-    return envs.load(SCENES[scene])
+    return envs.load(SCENES[scene], config_overrides=SCENE_OVERRIDES.get(scene))
 
 
 def run_mujoco_c(scene: str, worlds: int, min_time: float) -> dict:
@@ -617,6 +627,7 @@ def run_worker(spec: dict) -> dict:
             "jax" if engine == "mjx-jax" else "warp",
             spec["chunk"],
             spec["min_time"],
+            spec.get("representation"),
         )
     if engine == "mujoco-c":
         return run_mujoco_c(scene, worlds, spec["min_time"])
@@ -628,6 +639,8 @@ def run_worker(spec: dict) -> dict:
 
 
 def skip_reason(engine: str, scene: str, gpu: str | None) -> str | None:
+    if engine == "mjx-jax" and SCENE_OVERRIDES.get(scene, {}).get("representation") == "cylinder":
+        return "MJX-JAX has no cylinder-box collision (MuJoCo Warp and C only)"
     if engine == "pybullet" and scene != "rect":
         return "PyBullet models the rect peg-hole only (the dual is the task it could not run)"
     if engine == "mjx-warp":

@@ -388,3 +388,49 @@ def test_committed_session8_dual_analysis_is_reproduced_from_its_episodes():
     for k in ("reduction_pct", "reduction_pct_not_chosen_on", "policy_mean_fz_N"):
         assert got[k] == pytest.approx(committed[k])
     assert got["bootstrap"] == committed["bootstrap"]
+
+
+def test_gpu_suite_runs_its_tiny_configuration_on_the_cpu(tmp_path):
+    """benchmarks/gpu_suite.sh --tiny: the one-command GPU script, CPU smoke run (the MuJoCo
+    C rows run; mjx-warp skips cleanly without a GPU / warp; no training)."""
+    import os
+    import subprocess
+
+    env = {**os.environ, "OUT": str(tmp_path), "PYTHONPATH": str(ROOT), "PYTHON": sys.executable}
+    res = subprocess.run(
+        ["bash", str(ROOT / "benchmarks" / "gpu_suite.sh"), "--tiny"],
+        capture_output=True,
+        text=True,
+        env=env,
+        timeout=300,
+    )
+    assert res.returncode == 0, res.stderr[-2000:]
+    log = (tmp_path / "gpu_suite.log").read_text()
+    assert "[skip] mjx-warp" in log and "done in" in log
+    rows = bench_common.read_csv(tmp_path / "throughput_tiny.csv")
+    assert {(r["engine"], r["scene"]) for r in rows} == {("mujoco-c", "rect"), ("mujoco-c", "dual")}
+    assert all(float(r["physics_steps_per_s"]) > 0 for r in rows)
+
+
+def test_scene_variants_name_a_representation():
+    assert bench_common.SCENES["dual-mesh"] == "DualExtract"
+    assert bench_common.SCENE_OVERRIDES["dual-mesh"] == {"representation": "mesh"}
+    assert throughput.skip_reason("mjx-jax", "dual-cylinder", None) is not None
+    assert throughput.skip_reason("mjx-jax", "dual-mesh", None) is None
+
+
+def test_jammed_dual_contact_forces_match_the_oracle(monkeypatch):
+    """Two-point jam of the dual peg (benchmarks/capsule_fidelity.py jam, one depth, a faster
+    pull): the capsule and mesh scenes' mouth and tip contact forces are within 10 % of the
+    quasi-static oracle's, and the capsule's extraction force too (MuJoCo C, a few seconds)."""
+    import capsule_fidelity
+
+    monkeypatch.setattr(capsule_fidelity, "JAM_DEPTHS_MM", (25.0,))
+    out = capsule_fidelity.jam(speed_mm_s=10.0, h0_mm=30.0)
+    rel = out["relative_difference"]["25"]
+    assert set(out["oracle"]["25"]["contacts_N"]) == {"H2R-corner/P2", "P2L-tip/H2"}
+    for rep in ("capsule", "mesh"):
+        for name, v in rel[rep].items():
+            if name != "F_z":
+                assert abs(v) < 0.10, (rep, name, v)
+    assert abs(rel["capsule"]["F_z"]) < 0.10

@@ -144,6 +144,36 @@ def test_random_actions_200_steps_no_nan_and_determinism(compiled):
         np.testing.assert_array_equal(np.asarray(s2.obs), np.asarray(traj1[i]))
 
 
+@pytest.mark.slow
+def test_rollouts_stay_below_the_contact_cap(compiled):
+    """Every capped scene: the active contacts (distance <= 0) of scripted and random rollouts
+    stay below the scene's ``max_contact_points`` (a rollout that reaches it may have lost
+    contacts; the caps are sized in benchmarks/results/contact_caps.json)."""
+    from peghole_mjx.geometry.check import numeric
+    from peghole_mjx.geometry.mjcf import CONTACT_CAPS
+
+    env = compiled.env
+    cap = numeric(env.mj_model, "max_contact_points")
+    entry = CONTACT_CAPS.get((env.spec.kind, env.representation))
+    assert cap == (entry.cap if entry else 0)
+    if not cap:
+        pytest.skip(f"{env.representation}: no contact cap (every allocated contact can be active)")
+    assert cap > entry.measured_max
+    scripted = jnp.broadcast_to(scripted_policy(env)(None, None), (N_WORLDS, env.action_size))
+    rand = jax.random.uniform(
+        jax.random.PRNGKey(7), (60, N_WORLDS, env.action_size), minval=-1, maxval=1
+    )
+    worst = 0
+    for actions in ([scripted] * 40, rand):
+        s = compiled.reset(compiled.keys(5))
+        for a in actions:
+            s = compiled.step(s, a)
+            active = np.sum(np.asarray(s.data._impl.contact.dist) <= 0.0, axis=-1)
+            worst = max(worst, int(active.max()))
+    assert s.data._impl.contact.dist.shape[-1] == cap
+    assert worst < cap, f"{env.representation}: {worst} active contacts reach the cap {cap}"
+
+
 def test_every_reset_is_randomised(rect):
     a = rect.reset(rect.keys(0))
     b = rect.reset(rect.keys(1))
@@ -351,6 +381,28 @@ def test_warp_contact_buffer_overflow_ends_the_episode_and_is_counted():
     s = res.summary()
     assert s.overflow_worlds > 0
     assert s.success_rate < 1.0
+
+
+@pytest.mark.gpu
+@pytest.mark.skipif(not _cuda_warp(), reason="needs a CUDA GPU and warp-lang (impl='warp')")
+@pytest.mark.parametrize(
+    "name,rep", [("RectExtract", "box"), ("DualExtract", "capsule"), ("DualExtract", "cylinder")]
+)
+def test_warp_scenes_step_without_overflow(name, rep):
+    """MuJoCo Warp runs every scene (the dual cylinder one too) with the default buffers."""
+    env = envs.load(name, config_overrides={"impl": "warp", "representation": rep})
+    res = rollout(env, scripted_policy(env), 4, seed=0, progress=False)
+    s = res.summary()
+    assert s.overflow_worlds == 0 and s.nan_worlds == 0
+
+
+def test_cylinder_needs_warp_one_line_error():
+    with pytest.raises(UserInputError, match="cannot run with impl='jax'"):
+        envs.load("DualExtract", config_overrides={"representation": "cylinder"})
+    with pytest.raises(UserInputError, match="unknown collision representation"):
+        envs.load("DualExtract", config_overrides={"representation": "sphere"})
+    with pytest.raises(UserInputError, match="below the measured maximum"):
+        envs.load("DualExtract", config_overrides={"contact_cap": 4})
 
 
 def test_unknown_config_override_key_is_refused_by_name():

@@ -8,14 +8,18 @@ import numpy as np
 import pytest
 from mujoco import mjx
 
+from peghole_mjx.errors import UserInputError
 from peghole_mjx.geometry import mjcf
 from peghole_mjx.geometry.check import (
+    CLEARANCE_TOLERANCE,
+    check_spec,
     drop_gap_mujoco,
     drop_test,
     effective_clearance_mm,
+    effective_clearance_range_mm,
     free_peg_model,
 )
-from peghole_mjx.geometry.parts import peg_parts
+from peghole_mjx.geometry.parts import REPRESENTATIONS, peg_parts, resolve_representation
 from peghole_mjx.geometry.specs import MM, PRESETS
 
 REPO = Path(__file__).resolve().parents[1]
@@ -114,26 +118,91 @@ def test_written_scene_loads_in_mujoco_and_mjx(tmp_path):
     assert mx.nq == m.nq
 
 
-@pytest.mark.parametrize("name", ["rect-3", "dual-3"])
-def test_effective_clearance_is_measured_within_ten_percent(name):
+def test_effective_clearance_of_the_rect_hole_is_exact():
+    spec = PRESETS["rect-3"]
+    assert effective_clearance_mm(spec) == pytest.approx(spec.clearance_mm, rel=1e-3)
+
+
+@pytest.mark.parametrize("name", ["dual-1", "dual-2", "dual-3"])
+@pytest.mark.parametrize("rep", REPRESENTATIONS)
+def test_dual_effective_clearance_within_two_percent_in_every_direction(name, rep):
+    """mesh: aligned 16-gons, travel between cos(pi/16) (R-r) and R-r; capsule and cylinder:
+    round pegs in a circumscribed 16-gon of box walls, between R-r and (R-r) / cos(pi/16)."""
     spec = PRESETS[name]
-    eff = effective_clearance_mm(spec)
-    assert eff == pytest.approx(spec.clearance_mm, rel=0.10)
-    if name.startswith("dual"):  # aligned 16-gons: travel between cos(pi/16) (R-r) and R-r
-        assert eff == pytest.approx(spec.clearance_mm * np.cos(np.pi / 16), rel=1e-3)
+    lo, hi = effective_clearance_range_mm(spec, free_peg_model(spec, representation=rep))
+    c, a = spec.clearance_mm, np.cos(np.pi / 16)
+    expect = (c * a, c) if rep == "mesh" else (c, c / a)
+    np.testing.assert_allclose([lo, hi], expect, rtol=1e-3)
+    assert abs(lo / c - 1) <= CLEARANCE_TOLERANCE and abs(hi / c - 1) <= CLEARANCE_TOLERANCE
+
+
+def test_representations_build_their_collision_geometry():
+    spec = PRESETS["dual-2"]
+    n = spec.n_sides
+    geom = mujoco.mjtGeom
+    mesh = mjcf.compile_scene(spec, robot=False, representation="mesh")
+    # shared meshes: one wedge and one prism asset for the symmetric preset
+    assert mesh.nmesh == 2 and mesh.npair == 2 * (n + 1)
+    cap = mjcf.compile_scene(spec, robot=False)  # the dual default
+    assert cap.nmesh == 0 and cap.npair == 2 * (n + 1)
+    pegs = [cap.geom(f"peg{i}").id for i in (1, 2)]
+    assert all(cap.geom_type[g] == geom.mjGEOM_CAPSULE for g in pegs)
+    assert cap.numeric("max_contact_points").data[0] == mjcf.CONTACT_CAPS[("dual", "capsule")].cap
+    # walls and floor reach r deeper than the hole: the rounded end clears the floor
+    d = mujoco.MjData(cap)
+    mujoco.mj_kinematics(cap, d)
+    floor = cap.geom("hole1_floor").id
+    top = d.geom_xpos[floor][2] + cap.geom_size[floor][2]
+    bottom = d.site("hole_bottom").xpos[2]
+    assert bottom - top == pytest.approx(spec.peg_radii_mm[0] * MM, abs=1e-9)
+    cyl = mjcf.compile_scene(spec, robot=False, representation="cylinder")
+    assert cyl.geom_type[cyl.geom("peg1").id] == geom.mjGEOM_CYLINDER
+    # the rect parts are boxes whatever is asked
+    rect = mjcf.compile_scene(PRESETS["rect-2"], robot=False, representation="capsule")
+    assert (rect.geom_type[list(rect.pair_geom1)] == geom.mjGEOM_BOX).all()
+    for m in (mesh, cap):  # masses add up in every representation
+        assert m.body_subtreemass[m.body("peg").id] == pytest.approx(spec.peg_mass_kg)
+
+
+def test_bad_representation_and_cap_are_one_line_errors():
+    spec = PRESETS["dual-2"]
+    with pytest.raises(UserInputError, match="unknown collision representation 'sphere'"):
+        resolve_representation(spec, "sphere")
+    with pytest.raises(UserInputError, match="cannot run with impl='jax'"):
+        resolve_representation(spec, "cylinder", impl="jax")
+    assert resolve_representation(spec, "cylinder", impl="warp") == "cylinder"
+    measured = mjcf.CONTACT_CAPS[("dual", "capsule")].measured_max
+    with pytest.raises(UserInputError, match="below the measured maximum"):
+        mjcf.build_scene(spec, robot=False, contact_cap=measured - 1)
+    m = mjcf.compile_scene(spec, robot=False, contact_cap=0)  # 0: no cap
+    assert m.nnumeric == 0
+
+
+def test_check_reports_each_representation_without_mjx():
+    rows = {
+        r: check_spec("dual-1", PRESETS["dual-1"], mjx_too=False, representation=r)
+        for r in REPRESENTATIONS
+    }
+    assert all(r.passed for r in rows.values()), rows
+    cap = mjcf.CONTACT_CAPS[("dual", "capsule")].cap
+    assert rows["capsule"].contact_cap == cap and rows["capsule"].contacts_allocated == cap
+    assert rows["mesh"].contacts_allocated == 4 * 2 * 17 and rows["mesh"].contact_cap == 0
+    assert rows["cylinder"].contacts_allocated is None  # MJX-JAX cannot build it
+    assert rows["capsule"].constraint_rows < rows["mesh"].constraint_rows
 
 
 @pytest.mark.parametrize("name", sorted(PRESETS))
 def test_drop_test_mujoco_c_reaches_the_bottom(name):
     spec = PRESETS[name]
-    gap = drop_gap_mujoco(free_peg_model(spec), spec.hole_depth_mm * MM)
-    assert abs(gap) < 1.0
+    for rep in REPRESENTATIONS if name.startswith("dual") else ["box"]:
+        gap = drop_gap_mujoco(free_peg_model(spec, representation=rep), spec.hole_depth_mm * MM)
+        assert abs(gap) < 1.0, rep
 
 
 @pytest.mark.slow
 @pytest.mark.parametrize("name", ["rect-2", "dual-2"])
 def test_drop_test_mjx_jax_reaches_the_bottom(name):
-    res = drop_test(PRESETS[name])
+    res = drop_test(PRESETS[name])  # dual: the capsule default (the mesh one: models_check.json)
     assert res.mjx_ok and res.passed, res
     assert abs(res.gap_mjx_mm) < 0.1
 
@@ -153,3 +222,34 @@ def test_ik_reports_unreachable_targets():
     s = mjcf.build_scene(PRESETS["rect-1"], ik=False)
     with pytest.raises(RuntimeError, match="IK did not converge"):
         mjcf.solve_tool_ik(s, np.array([3.0, 0.0, 0.2]), max_iter=50)
+
+
+def test_cli_bad_representation_and_cap_are_one_line_errors(tmp_path):
+    import subprocess
+    import sys
+
+    for args, msg in (
+        (["check", "--preset", "dual-2", "--representation", "sphere"], "unknown collision"),
+        (["build", "--preset", "dual-2", "--contact-cap", "3", "--out", str(tmp_path)], "below"),
+    ):
+        res = subprocess.run(
+            [sys.executable, "-m", "peghole_mjx.cli", "models", *args],
+            capture_output=True,
+            text=True,
+        )
+        lines = [ln for ln in res.stderr.splitlines() if ln.startswith("peghole: error")]
+        assert res.returncode == 2 and len(lines) == 1 and msg in lines[0], res.stderr
+
+
+def test_capsule_mouth_lips_keep_the_clearance(monkeypatch):
+    """The experimental rounded mouth lips (parts.LIP_RADIUS_MM > 0; off by default) add one
+    capsule per wall and keep the effective clearance band."""
+    from peghole_mjx.geometry import parts
+
+    spec = PRESETS["dual-2"]
+    monkeypatch.setattr(parts, "LIP_RADIUS_MM", 0.3)
+    m = free_peg_model(spec, representation="capsule")
+    assert m.npair == 2 * (2 * spec.n_sides + 1)
+    lo, hi = effective_clearance_range_mm(spec, m)
+    c = spec.clearance_mm
+    assert abs(lo / c - 1) <= CLEARANCE_TOLERANCE and abs(hi / c - 1) <= CLEARANCE_TOLERANCE

@@ -16,6 +16,7 @@ its compliance centre ``L_C`` above the tip. See :class:`PegHoleEnv` for the tab
 from __future__ import annotations
 
 import functools
+import math
 from typing import Any
 
 import jax
@@ -30,6 +31,7 @@ from peghole_mjx.control import GAINS, LIMITS, ImpedanceController, Target, make
 from peghole_mjx.control.impedance import rotvec_from_mat
 from peghole_mjx.errors import UserInputError
 from peghole_mjx.geometry.mjcf import TOOL_DOWN_MAT, SimOptions, build_scene
+from peghole_mjx.geometry.parts import resolve_representation
 from peghole_mjx.geometry.specs import MM, PegHoleSpec, get_preset
 
 #: Table 4.1 reward weights (one source of truth; configs copy them into reward_config)
@@ -54,11 +56,23 @@ def base_config(preset: str) -> config_dict.ConfigDict:
     return config_dict.create(
         preset=preset,
         impl="jax",  # "jax" (CPU, GPU) or "warp" (CUDA GPU)
+        # collision representation of the parts (geometry/parts.py): dual "capsule" (default,
+        # GPU-scale), "mesh" (exact 16-gon parts) or "cylinder" (warp only); rect: "edges"
+        # (default: edge-capsule contacts, geometry/edges.py) or "box"
+        representation=resolve_representation(spec),
+        contact_cap=None,  # MJX max_contact_points; None: the measured cap (mjcf.CONTACT_CAPS)
         ctrl_dt=0.02,  # s, one env step (50 Hz)
         sim_dt=SimOptions().timestep,  # s, physics step (from the one place it is set)
         episode_length=600,  # env steps (12 s at 50 Hz)
-        naconmax=64,  # warp: contact buffer per world (x num worlds)
-        njmax=256,  # warp: constraint rows per world
+        # contact settings (docs/contact.md; peghole experiment contact-check, variant "envs"):
+        # a 10 ms contact time constant (0: 2 x sim_dt, MuJoCo's stiffest) and frictional rows
+        # relaxed over 1 s (0: as stiff as the normal row)
+        contact=config_dict.create(timeconst_s=0.01, friction_timeconst_s=1.0),
+        # warp: contact buffer per world (x num worlds) and constraint rows per world; the most
+        # active contacts measured (benchmarks/results/contact_caps.json) are rect 20, dual
+        # capsule 22, dual mesh 47; 3 rows per elliptic condim-3 contact + joint limits
+        naconmax=64,
+        njmax=256,
         action=config_dict.create(
             max_step_offset_mm=LIMITS.max_step_offset_m / MM,  # |dx|, |dy| per step (Sec 4.3.1)
             max_speed_m_s=LIMITS.max_speed_m_s,  # |dz| per step = this x ctrl_dt
@@ -121,6 +135,20 @@ def base_config(preset: str) -> config_dict.ConfigDict:
             stiffness_N_m=(0.0, 0.0),  # CS off: if max > 0, k_xy ~ U(range) per episode
         ),
         peg_length_mm=spec.length_mm,
+    )
+
+
+def sim_options(config: config_dict.ConfigDict) -> SimOptions:
+    """The simulator options of an env config (its step and ``contact`` group)."""
+    c = config.contact
+    for name in ("timeconst_s", "friction_timeconst_s"):
+        v = float(c[name])
+        if not (math.isfinite(v) and v >= 0):
+            raise UserInputError(f"contact.{name} must be a finite number >= 0, got {v}")
+    return SimOptions(
+        timestep=config.sim_dt,
+        contact_timeconst=float(c.timeconst_s) or None,
+        friction_timeconst=float(c.friction_timeconst_s) or None,
     )
 
 
@@ -299,9 +327,19 @@ class PegHoleEnv:
             raise UserInputError("ctrl_dt must be a whole multiple of sim_dt")
         self._n_substeps = round(n_sub)
         self.spec: PegHoleSpec = get_preset(config.preset)
-        sim = SimOptions(timestep=config.sim_dt)
-        self._mj_model = build_scene(self.spec, sim=sim).compile()
+        sim = sim_options(config)
+        self.representation = resolve_representation(
+            self.spec, config.representation, impl=config.impl
+        )
+        self._mj_model = build_scene(
+            self.spec, sim=sim, representation=self.representation, contact_cap=config.contact_cap
+        ).compile()
         m = self._mj_model
+        if config.impl == "warp":
+            # MuJoCo Warp collides box-box (rect) and capsule-box with its primitive routines
+            # only with nativeccd off; the cylinder representation's cylinder-box pairs go
+            # through GJK/EPA either way
+            m.opt.disableflags |= mujoco.mjtDisableBit.mjDSBL_NATIVECCD
         self._mjx_model = mjx.put_model(m, impl=config.impl)
         self._ctrl = ImpedanceController.from_model(m)
         # ids, looked up by name

@@ -1,7 +1,10 @@
 """DualExtract: pull the dual peg out of its two holes (thesis Ch 2, preset dual-2).
 
 The RL study the thesis could not run: PyBullet collided the non-convex dual peg as its convex
-hull. Here the peg is two convex prisms and a bridge, the holes convex wedges.
+hull. Here the parts are convex pieces in the collision representation of ``config.representation``
+(:mod:`peghole_mjx.geometry.parts`): by default ``capsule`` (capsule pegs in box-walled holes, the
+GPU-scale scene), or ``mesh`` (two 16-gon prisms and a bridge in convex wedges, exact; the
+published dual policy was trained there and pins it).
 """
 
 from __future__ import annotations

@@ -22,6 +22,54 @@ def add_parser(subparsers) -> None:
     c.add_argument("--out", required=True, type=Path, help="output directory")
     c.set_defaults(func=run)
 
+    w = sub.add_parser(
+        "sweep",
+        help="the compliance experiment over a regime grid (K_theta, beta0, mu, ...), resumable",
+        description="Batched, resumable regime sweep of the compliance-centre experiment; "
+        "writes compliance_sweep_<geometry>.json/.csv and figures into --out. Rerun the same "
+        "command to resume. List options override the named grid's values.",
+    )
+    w.add_argument("--geometry", required=True, help="rect or dual")
+    w.add_argument("--grid", default="cpu", help="cpu (default), full or tiny")
+    w.add_argument("--presets", default=None, help="comma-separated presets")
+    w.add_argument("--k-rot", default=None, help="K_theta values, N m/rad, comma-separated")
+    w.add_argument("--k-lat", default=None, help="lateral stiffness values, N/m")
+    w.add_argument("--beta0", default=None, help="beta0 values, deg (thesis sign)")
+    w.add_argument("--delta0", default=None, help="delta0 values, mm")
+    w.add_argument("--mu", default=None, help="friction values")
+    w.add_argument("--repeats", type=int, default=None, help="draws per cell and L_C (16)")
+    w.add_argument("--seed", type=int, default=0)
+    w.add_argument("--batch-worlds", type=int, default=96, help="worlds per compiled batch")
+    w.add_argument("--out", required=True, type=Path, help="output folder (resumable)")
+    w.set_defaults(func=run_sweep)
+
+    k = sub.add_parser(
+        "contact-check",
+        help="does a tilted rect peg hold two-point contact? (per-world contact quality)",
+        description="Pulls the standard tilted rect case (L_C at the tip, K_theta 300 N m/rad, "
+        "delta0 ~2 mm, beta0 ~-0.2 deg, mu 0.266) under each variant of step size and contact "
+        "settings and reports penetration, wall switches, both-walls fraction, peak/mean "
+        "contact force and agreement with the quasi-static oracle.",
+    )
+    k.add_argument("--preset", action="append", default=None, help="rect preset (repeatable)")
+    k.add_argument(
+        "--variant", action="append", default=None, help="variant name (repeatable) or all"
+    )
+    k.add_argument("--worlds", type=int, default=8)
+    k.add_argument("--seed", type=int, default=0)
+    k.add_argument("--out", type=Path, default=None, help="JSON file to write")
+    k.add_argument("--json", action="store_true", help="print the JSON instead of a table")
+    k.add_argument(
+        "--x64", action="store_true", help="run in float64 (jax_enable_x64) instead of float32"
+    )
+    k.add_argument(
+        "--append",
+        action="store_true",
+        help="keep the runs already in --out (a rerun of the same preset, variant and "
+        "precision replaces its row)",
+    )
+    k.set_defaults(func=run_contact_check)
+
 
 def run(args: argparse.Namespace) -> int:
     from peghole_mjx.experiments.compliance import ExperimentConfig, Extraction
@@ -54,4 +102,112 @@ def run(args: argparse.Namespace) -> int:
             f"{summary['reduction_tip_vs_top_pct'][preset]} % (thesis 77.1), tip vs centre "
             f"{summary['reduction_tip_vs_centre_pct'][preset]} % (thesis 55.6)"
         )
+    return 0
+
+
+def _floats(text: str | None, name: str) -> tuple[float, ...] | None:
+    if text is None:
+        return None
+    try:
+        vals = tuple(float(v) for v in text.split(",") if v.strip())
+    except ValueError:
+        raise UserInputError(f"--{name} takes comma-separated numbers, got {text!r}") from None
+    if not vals:
+        raise UserInputError(f"the sweep grid is empty: --{name} has no values")
+    return vals
+
+
+def run_sweep(args: argparse.Namespace) -> int:
+    from peghole_mjx.experiments import sweep
+
+    if args.geometry not in sweep.GRIDS:
+        raise UserInputError(f"--geometry must be rect or dual, not {args.geometry!r}")
+    grids = sweep.GRIDS[args.geometry]
+    if args.grid not in grids:
+        raise UserInputError(f"--grid must be one of {', '.join(grids)}, not {args.grid!r}")
+    grid = grids[args.grid]
+    changes = {
+        "k_rot_Nm_rad": _floats(args.k_rot, "k-rot"),
+        "k_lat_N_m": _floats(args.k_lat, "k-lat"),
+        "beta0_deg": _floats(args.beta0, "beta0"),
+        "delta0_mm": _floats(args.delta0, "delta0"),
+        "mu": _floats(args.mu, "mu"),
+    }
+    if args.presets is not None:
+        changes["presets"] = tuple(p.strip() for p in args.presets.split(",") if p.strip())
+    if args.repeats is not None:
+        changes["repeats"] = args.repeats
+    grid = dataclasses.replace(grid, **{k: v for k, v in changes.items() if v is not None})
+    grid.check()
+    if grid.geometry != args.geometry:
+        raise UserInputError(f"the presets are not {args.geometry} presets")
+    cfg = sweep.SweepConfig(grid=grid, seed=args.seed, batch_worlds=args.batch_worlds)
+    result = sweep.run_sweep(cfg, args.out)
+    for f in sweep.write_figures(result, args.out):
+        print(f)
+    print(sweep.summary_table(result))
+    return 0
+
+
+def run_contact_check(args: argparse.Namespace) -> int:
+    import json
+
+    from peghole_mjx.experiments import contact_check as cc
+    from peghole_mjx.experiments.sweep import clean_json
+    from peghole_mjx.provenance import provenance
+
+    if args.x64:
+        import jax
+
+        jax.config.update("jax_enable_x64", True)
+    presets = args.preset or ["rect-2", "rect-3"]
+    names = args.variant or ["experiment", "envs"]
+    if "all" in names:
+        names = list(cc.VARIANTS)
+    unknown = [n for n in names if n not in cc.VARIANTS]
+    if unknown:
+        raise UserInputError(
+            f"unknown variant(s) {', '.join(unknown)}; known: {', '.join(cc.VARIANTS)}"
+        )
+    if args.out is not None and args.out.is_dir():
+        raise UserInputError(f"--out {args.out} is a folder; give a JSON file path")
+    if args.append and args.out is None:
+        raise UserInputError("--append needs --out")
+    old = []
+    if args.append and args.out.exists():
+        try:
+            old = json.loads(args.out.read_text())["runs"]
+        except (ValueError, KeyError) as exc:
+            raise UserInputError(f"--out {args.out} is not a contact-check JSON: {exc}") from None
+    runs = []
+    for p in presets:
+        for n in names:
+            r = cc.run_variant(p, cc.VARIANTS[n], worlds=args.worlds, seed=args.seed)
+            runs.append(r)
+            if not args.json:
+                print(cc.table_row(r), flush=True)
+    new_keys = {(r["preset"], r["variant"]["name"], r["precision"]) for r in runs}
+    kept = [
+        r
+        for r in old
+        if (r["preset"], r["variant"]["name"], r.get("precision", "float32")) not in new_keys
+    ]
+    runs = kept + runs
+    doc = clean_json(
+        {
+            "bounds": cc.BOUNDS,
+            "case": cc.case_dict(),
+            "runs": runs,
+            **provenance(),
+        }
+    )
+    if args.json:
+        print(json.dumps(doc, indent=1))
+    if args.out is not None:
+        args.out.parent.mkdir(parents=True, exist_ok=True)
+        tmp = args.out.with_suffix(args.out.suffix + ".tmp")
+        tmp.write_text(json.dumps(doc, indent=1))
+        tmp.replace(args.out)
+        if not args.json:
+            print(args.out)
     return 0

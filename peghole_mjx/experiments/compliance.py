@@ -2,18 +2,23 @@
 
 Per world: the peg starts fully inserted (keyframe ``inserted``, centred, aligned, no contact).
 The impedance law (:mod:`peghole_mjx.control`) holds the compliance centre ``C`` (``L_C`` above
-the tip) with K = 0.3 N/mm laterally; its commanded pose is the start pose of ``C`` with a
-lateral error ``delta0`` (at ``C``, along world x) and an angular error ``beta0`` (about ``C``,
-about world y), both drawn per world. After a short settling time the commanded point moves
-straight up at a constant speed until the tip is clear of the mouth. The tared F/T-sensor force
-is logged against the tip depth.
+the tip) with a lateral stiffness ``k_lat`` and a rotational stiffness ``k_rot``. Its commanded
+pose is the start pose of ``C`` displaced to the spring rest pose of the quasi-static model
+(:func:`peghole_mjx.analysis.common.rest_pose`): a lateral error ``delta0`` along world x plus
+``-L_C sin(theta0)``, and a rotation by ``beta0 + theta0`` about ``C`` (about world y). Both
+errors are ramped in over the settling time; then the commanded point moves straight up at a
+constant speed until the tip is clear of the mouth. Angles use the thesis's (the model's) sign:
+a positive angle tilts the peg top towards -x (a rotation of ``-(beta0 + theta0)`` about world y).
 
-Batching: all worlds of a preset run through ``jax.vmap`` inside one jitted, time-chunked
-``lax.scan`` (tqdm shows the chunks). With ``XLA_FLAGS=--xla_cpu_use_fusion_emitters=false``
-(set by :mod:`peghole_mjx` at import) the batched step is fast on the CPU too: about 4000
-world-steps/s for a rect scene and 60-200 for the contact-rich dual scene (2-core CPU, 18
-worlds, measured; see docs/control.md). ``batch="map"`` runs the worlds one after another
-(each still a jitted scan); it gives the same numbers and only saves memory.
+Logged per 20 ms sample (the mean over its physics steps, like an anti-aliased F/T reading):
+the tip depth, the tared F/T force, and per lateral wall side (contact normals along +x and -x)
+the mean and the peak per-step normal contact force, the fraction of steps with both sides
+loaded, and the number of wall-contact switches. Two-point contact is judged on the per-side
+mean force of each sample (:func:`two_point_windows`), not on same-step coincidence.
+
+Batching: all worlds of a (preset, friction) run through ``jax.vmap`` inside one jitted,
+time-chunked ``lax.scan`` (tqdm shows the chunks); :meth:`Extraction.run` takes any table of
+per-world parameters, so a sweep batches every cell of a preset into the same compiled call.
 """
 
 from __future__ import annotations
@@ -32,6 +37,7 @@ from scipy.signal import savgol_filter
 from tqdm import tqdm
 
 from peghole_mjx.control import GAINS, ImpedanceController, Target, make_params
+from peghole_mjx.errors import UserInputError
 from peghole_mjx.geometry.mjcf import SimOptions, compile_scene
 from peghole_mjx.geometry.specs import MM, PRESETS
 
@@ -44,16 +50,43 @@ THESIS = {
 
 LC_MM = {"rect": (0.0, 75.0, 150.0), "dual": (0.0, 25.0, 50.0)}
 
+#: The experiment's physics step and contact time constant, s, per geometry (evidence:
+#: ``peghole experiment contact-check``, benchmarks/results/contact_check.json and the table in
+#: docs/contact.md). In float32 a 1 um penetration is within a few ulps of the world
+#: coordinates (~0.6 m), so MuJoCo's stiffest contact (time constant 2 steps) turns rounding
+#: noise into force noise; a 10 ms time constant keeps the tilted rect pegs in two-point contact
+#: with a few um of penetration. The dual presets' clearances are 2-4x larger.
+TIMESTEP_S = {"rect": 0.001, "dual": 0.002}
+CONTACT_TIMECONST_S = {"rect": 0.01, "dual": 0.01}
 
-#: The experiment's physics step as a fraction of the project's (``SimOptions().timestep``).
-#: The rect presets' radial clearances are 25-300 um and the experiment allows a penetration
-#: of 25 % of it (6.25 um for rect-3). At the default 2 ms step (contact time constant 4 ms)
-#: the pulled peg's contacts penetrate 11-30 um in rect-2 / rect-3, whatever the solimp
-#: impedance (0.99-0.997 change nothing; 0.999 goes NaN in float32). Max over the rect-3
-#: worlds (docs/control.md): 2 ms 11-14 um, 1 ms 8-9 um, 0.5 ms 7.5 um (2 of 18 worlds over),
-#: 0.25 ms 3.9 um. So the rect experiment runs at an eighth of the default step; the dual
-#: presets (at most 12 um of 50-400 um at 2 ms) keep it.
-TIMESTEP_DIVISOR = {"rect": 8, "dual": 1}
+#: a 20 ms sample is a two-point window when both wall sides carry at least this mean normal
+#: force (N): well below the lateral spring's 0.3-0.6 N and above the solver's noise floor
+TWO_POINT_MIN_N = 0.05
+#: a physics step counts a side as loaded above this normal force, N
+LOADED_N = 1e-3
+#: the part of the pull left out of the "late" peaks (the start transient), mm
+EARLY_MM = {"rect": 5.0, "dual": 2.0}
+
+#: per-sample record columns (means over the sample's steps unless the name says otherwise)
+REC = (
+    "depth",
+    "fx",
+    "fy",
+    "fz",
+    "f_plus",
+    "f_minus",
+    "f_plus_max",
+    "f_minus_max",
+    "both_frac",
+    "switches",
+    "any_frac",
+    "wrench_ratio",
+    "pen_max",
+)
+_R = {k: i for i, k in enumerate(REC)}
+_MEAN = ("depth", "fx", "fy", "fz", "f_plus", "f_minus", "both_frac", "any_frac")
+_MAX = ("f_plus_max", "f_minus_max", "wrench_ratio", "pen_max")
+WORLD_KEYS = ("L_C", "delta0", "beta0", "theta0", "k_lat", "k_rot")
 
 
 @dataclass(frozen=True)
@@ -69,8 +102,11 @@ class ExperimentConfig:
     rotational_stiffness_Nm_rad: float = GAINS.rotational_stiffness_Nm_rad
     #: lateral error of the commanded C (thesis analyses: delta0 = 2 mm), uniform range, mm
     delta0_mm: tuple[float, float] = (1.5, 2.5)
-    #: angular error of the commanded frame about C, uniform range, deg
-    beta0_deg: tuple[float, float] = (-0.2, 0.2)
+    #: angular error of the commanded frame about C, uniform range, deg (thesis sign; one sign
+    #: per run, since the sign of the L_C effect follows it)
+    beta0_deg: tuple[float, float] = (0.1, 0.3)
+    #: commanded initial tilt theta0 (thesis Tables 2.2, 3.2, erratum E3: -0.9 deg), deg
+    theta0_deg: float = 0.0
     speed_m_s: float = 0.02
     settle_s: float = 0.3
     clear_mm: float = 5.0  # pull until the tip is this far above the mouth
@@ -79,17 +115,20 @@ class ExperimentConfig:
     #: physics steps per jitted call (a multiple of the steps per sample)
     chunk_steps: int = 400
     batch: str = "vmap"
-    #: simulator options of the scene (None: ``SimOptions()``, the project default)
+    #: simulator options of the scene (None: ``SimOptions()`` at :data:`TIMESTEP_S`)
     sim: SimOptions | None = None
+    #: collision representation (None: the default; :func:`geometry.parts.resolve_representation`)
+    representation: str | None = None
 
     def sim_options(self) -> SimOptions:
-        """The simulator options in effect: ``sim``, else the project's default with the
-        geometry's finer step (:data:`TIMESTEP_DIVISOR`)."""
+        """The simulator options in effect: ``sim``, else the project's default options at the
+        geometry's experiment step and contact time constant (:data:`TIMESTEP_S`)."""
         if self.sim is not None:
             return self.sim
-        base = SimOptions()
         return dataclasses.replace(
-            base, timestep=base.timestep / TIMESTEP_DIVISOR.get(self.geometry, 1)
+            SimOptions(),
+            timestep=TIMESTEP_S[self.geometry],
+            contact_timeconst=CONTACT_TIMECONST_S[self.geometry],
         )
 
     def preset_names(self) -> tuple[str, ...]:
@@ -99,7 +138,7 @@ class ExperimentConfig:
 
 
 def world_table(cfg: ExperimentConfig, preset: str) -> dict[str, np.ndarray]:
-    """Per-world L_C (m), delta0 (m), beta0 (rad): the three L_C x ``repeats`` draws.
+    """Per-world parameters (SI; angles in rad, thesis sign): the three L_C x ``repeats``.
 
     The same error draws are used for each L_C (paired comparison).
     """
@@ -107,10 +146,14 @@ def world_table(cfg: ExperimentConfig, preset: str) -> dict[str, np.ndarray]:
     d0 = rng.uniform(*cfg.delta0_mm, cfg.repeats) * MM
     b0 = np.radians(rng.uniform(*cfg.beta0_deg, cfg.repeats))
     lc = np.array(LC_MM[PRESETS[preset].kind]) * MM
+    n = len(lc) * cfg.repeats
     return {
         "L_C": np.repeat(lc, cfg.repeats),
         "delta0": np.tile(d0, len(lc)),
         "beta0": np.tile(b0, len(lc)),
+        "theta0": np.full(n, math.radians(cfg.theta0_deg)),
+        "k_lat": np.full(n, cfg.lateral_stiffness_N_m),
+        "k_rot": np.full(n, cfg.rotational_stiffness_Nm_rad),
     }
 
 
@@ -120,12 +163,17 @@ def _rot_y(a):
 
 
 class Extraction:
-    """One preset's compiled scene, controller and jitted chunk function."""
+    """One preset's compiled scene (at friction ``mu``), controller and jitted chunk function."""
 
-    def __init__(self, preset: str, cfg: ExperimentConfig):
+    def __init__(self, preset: str, cfg: ExperimentConfig, mu: float | None = None):
+        if preset not in PRESETS:
+            raise UserInputError(f"unknown preset {preset!r}; known: {', '.join(PRESETS)}")
         self.preset, self.cfg = preset, cfg
         self.spec = PRESETS[preset]
-        m = compile_scene(self.spec, sim=cfg.sim_options())
+        if mu is not None:
+            self.spec = dataclasses.replace(self.spec, friction=float(mu))
+        self.mu = float(self.spec.friction)
+        m = compile_scene(self.spec, sim=cfg.sim_options(), representation=cfg.representation)
         self.m = m
         self.ctl = ImpedanceController(m)
         d = mujoco.MjData(m)
@@ -141,11 +189,15 @@ class Extraction:
         self.ft_adr = int(ft.adr[0])
         self.ft_site = m.site("ft_site").id
         self.tip_site = m.site("peg_tip").id
+        self._peg_geom = jnp.asarray(m.geom_bodyid == m.body("peg").id)
         self.mouth_z = float(d.site("hole_mouth").xpos[2])
         self.tip_z0 = float(d.site("peg_tip").xpos[2])
         self.dt = m.opt.timestep
         self.mx = mjx.put_model(m, impl="jax")
-        self.dx0 = mjx.put_data(m, d, impl="jax")
+        dx0 = mjx.put_data(m, d, impl="jax")
+        # with jax_enable_x64 a step returns some int32 fields as int64: start with its dtypes
+        out = jax.eval_shape(mjx.step, self.mx, dx0)
+        self.dx0 = jax.tree.map(lambda a, o: a.astype(o.dtype), dx0, out)
         depth = self.mouth_z - self.tip_z0
         pull = depth + cfg.clear_mm * MM
         self.n_settle = round(cfg.settle_s / self.dt)
@@ -165,42 +217,59 @@ class Extraction:
         self._chunk = jax.jit(self._chunk_fn)
 
     # ---- one world -------------------------------------------------------------------
-    def _init_world(self, L_C, delta0, beta0):
-        cfg = self.cfg
-        k, kz, kr = (
-            cfg.lateral_stiffness_N_m,
-            cfg.axial_stiffness_N_m,
-            cfg.rotational_stiffness_Nm_rad,
+    def _init_world(self, L_C, delta0, beta0, theta0, k_lat, k_rot):
+        kz = self.cfg.axial_stiffness_N_m
+        params = make_params(
+            L_C, self.q0, stiffness=jnp.stack([k_lat, k_lat, kz + 0 * k_lat, k_rot, k_rot, k_rot])
         )
-        params = make_params(L_C, self.q0, stiffness=jnp.array([k, k, kz, kr, kr, kr]))
         x_C, R = self.ctl.centre_pose(self.dx0, params.L_C)
-        target = Target(x_C + jnp.array([1.0, 0.0, 0.0]) * delta0, _rot_y(beta0) @ R, jnp.zeros(3))
-        # max penetration m, nan flag, tip depth m and time s at the max penetration
-        stats = jnp.zeros(4)
-        return (self.dx0, target, params, stats)
+        # spring rest pose of the quasi-static model (analysis.common.rest_pose), world frame:
+        # lateral offset along +x, rotation about world y of -(beta0 + theta0) (thesis sign)
+        dx = delta0 - L_C * jnp.sin(theta0)
+        err = jnp.stack([dx, -(beta0 + theta0)])
+        target = Target(x_C, R, jnp.zeros(3))
+        # max penetration m, nan flag, depth and time at max penetration, last single side,
+        # max penetration while the tip is below the mouth (where the clearance constrains it)
+        stats = jnp.zeros(6)
+        return (self.dx0, target, params, err, stats)
 
-    def x_C0(self, params):
-        return self.ctl.centre_pose(self.dx0, params.L_C)[0]
+    def _side_forces(self, dx):
+        """Normal contact force summed over the contacts facing +x and -x, N."""
+        con = dx._impl.contact
+        addr = con.efc_address
+        fn = jnp.where(addr >= 0, dx._impl.efc_force[jnp.maximum(addr, 0)], 0.0)
+        nx = con.frame[:, 0, 0] if con.frame.ndim == 3 else con.frame[:, 0]
+        # the normal points from geom1 to geom2: make it point from the peg into the hole
+        nx = jnp.where(self._peg_geom[con.geom1], nx, -nx)
+        plus = jnp.sum(jnp.where(nx > 0.3, fn, 0.0))
+        minus = jnp.sum(jnp.where(nx < -0.3, fn, 0.0))
+        pen = jnp.max(jnp.where((addr >= 0) & jnp.isfinite(con.dist), -con.dist, 0.0), initial=0.0)
+        return plus, minus, pen
 
     def _step(self, carry, t):
-        dx, target, params, stats = carry
+        dx, target, params, err, stats = carry
         cfg = self.cfg
         moving = t >= self.n_settle
         vel = jnp.where(moving, cfg.speed_m_s, 0.0) * jnp.array([0.0, 0.0, 1.0])
         target = target._replace(pos=target.pos + vel * self.dt, vel=vel)
-        # the errors are ramped in over the settling time (no impact at the start)
+        # both errors are ramped in over the settling time (no impact at the start)
         a = jnp.clip(t / jnp.maximum(self.n_settle, 1), 0.0, 1.0)
-        dp = target.pos - self.x_C0(params)
-        cmd = target._replace(pos=target.pos - (1.0 - a) * dp.at[2].set(0.0))
+        cmd = target._replace(
+            pos=target.pos + a * err[0] * jnp.array([1.0, 0.0, 0.0]),
+            mat=_rot_y(a * err[1]) @ target.mat,
+        )
         dx_c, out = self.ctl.apply(self.mx, dx, cmd, params)
         new = mjx.step(self.mx, dx_c)
         ok = jnp.all(jnp.isfinite(new.qpos)) & jnp.all(jnp.isfinite(new.qvel)) & (stats[1] == 0)
         dx = jax.tree.map(lambda a, b: jnp.where(ok, a, b), new, dx)
-        con = dx._impl.contact
-        pen = jnp.max(jnp.where(jnp.isfinite(con.dist), -con.dist, 0.0), initial=0.0)
+        plus, minus, pen = self._side_forces(dx)
         pen = jnp.where(ok, pen, 0.0)
         new_max = pen > stats[0]
         tip_depth = self.mouth_z - dx.site_xpos[self.tip_site, 2]
+        # wall-contact switch: the one loaded side differs from the last one-sided step's
+        lp, lm = plus > LOADED_N, minus > LOADED_N
+        side = jnp.where(lp & ~lm, 1.0, jnp.where(lm & ~lp, -1.0, 0.0))
+        switch = (side != 0) & (stats[4] != 0) & (side != stats[4])
         stats = (
             stats.at[2]
             .set(jnp.where(new_max, tip_depth, stats[2]))
@@ -210,37 +279,46 @@ class Extraction:
             .max(pen)
             .at[1]
             .set(jnp.where(ok, 0.0, 1.0))
+            .at[4]
+            .set(jnp.where(side != 0, side, stats[4]))
+            .at[5]
+            .max(jnp.where(tip_depth > 0, pen, 0.0))
         )
         # F/T force on the peg, world frame, tared
         f = dx.site_xmat[self.ft_site] @ dx.sensordata[self.ft_adr : self.ft_adr + 3]
         f = f - self.tare_world
-        depth = self.mouth_z - dx.site_xpos[self.tip_site, 2]
-        # two-point contact: active contacts with opposite lateral normals
-        n = con.frame[:, 0, :] if con.frame.ndim == 3 else con.frame[:, :3]
-        nxy = n[:, :2]
-        side = (con.dist < 0) & (jnp.linalg.norm(nxy, axis=1) > 0.5)
-        dots = nxy @ nxy.T
-        two = jnp.any(side[:, None] & side[None, :] & (dots < -0.25))
+        ratio = jnp.max(jnp.abs(out.wrench) / jnp.asarray(self.ctl.limits.max_wrench))
         rec = jnp.stack(
             [
-                depth,
+                tip_depth,
                 f[0],
                 f[1],
                 f[2],
-                two.astype(f.dtype),
-                jnp.max(jnp.abs(out.wrench) / jnp.asarray(self.ctl.limits.max_wrench)),
+                plus,
+                minus,
+                plus,
+                minus,
+                (lp & lm).astype(f.dtype),
+                switch.astype(f.dtype),
+                (lp | lm).astype(f.dtype),
+                ratio,
+                pen,
             ]
         )
-        return (dx, target, params, stats), rec
+        return (dx, target, params, err, stats), rec
 
     def _world_chunk(self, carry, t0):
         ts = t0 + jnp.arange(self.cfg.chunk_steps)
         carry, rec = jax.lax.scan(self._step, carry, ts)
         k = self.record_every
         rec = rec.reshape(-1, k, rec.shape[-1])
-        # each sample: the mean over its k steps (a sensor's anti-alias average); contact
-        # flag and wrench ratio: the max
-        return carry, jnp.concatenate([rec[:, :, :4].mean(1), rec[:, :, 4:].max(1)], axis=-1)
+        out = [None] * len(REC)
+        for name in _MEAN:
+            out[_R[name]] = rec[:, :, _R[name]].mean(1)
+        for name in _MAX:
+            out[_R[name]] = rec[:, :, _R[name]].max(1)
+        out[_R["switches"]] = rec[:, :, _R["switches"]].sum(1)
+        return carry, jnp.stack(out, axis=-1)
 
     def _chunk_fn(self, carries, t0):
         f = functools.partial(self._world_chunk, t0=t0)
@@ -248,11 +326,22 @@ class Extraction:
             return jax.vmap(f)(carries)
         return f(carries)  # batch="map": one world per call
 
-    def run(self, progress: bool = True) -> dict[str, np.ndarray]:
-        tab = world_table(self.cfg, self.preset)
-        carries = jax.vmap(self._init_world)(
-            *(jnp.asarray(tab[k]) for k in ("L_C", "delta0", "beta0"))
-        )
+    def run(
+        self, progress: bool = True, table: dict[str, np.ndarray] | None = None
+    ) -> dict[str, np.ndarray]:
+        """Run every world of ``table`` (default :func:`world_table`) in one batch.
+
+        Returns per world and sample the :data:`REC` columns (forces in N, ``depth_mm``), the
+        table, ``two_point`` (:func:`two_point_windows`), per-world ``penetration_mm`` (the
+        whole pull), ``penetration_in_hole_mm`` (while the tip is below the mouth: the exit,
+        where a rounded tip meets the mouth edge, is left out) and ``nan``, the sample times
+        ``time_s`` and the start depth ``h0_mm``.
+        """
+        tab = world_table(self.cfg, self.preset) if table is None else table
+        missing = [k for k in WORLD_KEYS if k not in tab]
+        if missing:
+            raise ValueError(f"world table lacks {missing}")
+        carries = jax.vmap(self._init_world)(*(jnp.asarray(tab[k]) for k in WORLD_KEYS))
         nw = len(tab["L_C"])
         if self.cfg.batch == "vmap":
             groups = [carries]
@@ -269,28 +358,72 @@ class Extraction:
                 grec.append(np.asarray(rec))
                 bar.update()
             recs.append(
-                np.concatenate(grec, axis=-2).reshape(-1, sum(r.shape[-2] for r in grec), 6)
+                np.concatenate(grec, axis=-2).reshape(-1, sum(r.shape[-2] for r in grec), len(REC))
             )
-            stats.append(np.asarray(g[3]).reshape(-1, 4))
+            stats.append(np.asarray(g[4]).reshape(-1, 6))
         bar.close()
-        rec = np.concatenate(recs, axis=0)  # (worlds, samples, 6)
+        rec = np.concatenate(recs, axis=0).astype(np.float64)  # (worlds, samples, REC)
         stats = np.concatenate(stats, axis=0)
-        out = dict(tab)
+        out = {k: np.asarray(v) for k, v in tab.items()}
+        for name in REC:
+            out[name] = rec[..., _R[name]]
+        out["depth_mm"] = out.pop("depth") / MM
+        out["pen_max_mm"] = out.pop("pen_max") / MM
+        out["two_point"] = two_point_windows(out["f_plus"], out["f_minus"])
         out.update(
-            depth_mm=rec[..., 0] / MM,
-            fx=rec[..., 1],
-            fy=rec[..., 2],
-            fz=rec[..., 3],
-            two_point=rec[..., 4] > 0.5,
-            wrench_ratio=rec[..., 5],
             penetration_mm=stats[:, 0] / MM,
+            penetration_in_hole_mm=stats[:, 5] / MM,
             penetration_at_depth_mm=stats[:, 2] / MM,
             penetration_at_time_s=stats[:, 3],
             nan=stats[:, 1] > 0,
         )
         out["time_s"] = (np.arange(rec.shape[1]) + 1) * self.record_every * self.dt
         out["h0_mm"] = (self.mouth_z - self.tip_z0) / MM
+        out["settle_s"] = self.n_settle * self.dt
         return out
+
+
+def two_point_windows(
+    f_plus: np.ndarray, f_minus: np.ndarray, min_force_N: float = TWO_POINT_MIN_N
+) -> np.ndarray:
+    """Two-point contact per sample: both wall sides carry a mean normal force >=
+    ``min_force_N`` over the sample (time-averaged, so a contact that alternates between the
+    walls within the sample counts as loading both; see :func:`chatter_stats`)."""
+    f_plus, f_minus = np.asarray(f_plus, float), np.asarray(f_minus, float)
+    return (f_plus >= min_force_N) & (f_minus >= min_force_N)
+
+
+def window_means(per_step: np.ndarray, steps_per_window: int) -> np.ndarray:
+    """Mean of a per-step trace (..., steps) over consecutive windows (a short tail dropped)."""
+    a = np.asarray(per_step, float)
+    n = a.shape[-1] // steps_per_window * steps_per_window
+    return a[..., :n].reshape(*a.shape[:-1], -1, steps_per_window).mean(-1)
+
+
+def chatter_stats(res: dict[str, np.ndarray], world: int) -> dict[str, float | None]:
+    """Contact quality inside one world's two-point windows: the fraction of physics steps
+    with both sides loaded, and the peak per-step over the 20 ms mean side force (median,
+    p95 and max over the windows); ``None`` where the world has no two-point window."""
+    tp = res["two_point"][world]
+    if not tp.any():
+        return {
+            "windows": 0,
+            "both_frac": None,
+            "peak_ratio_median": None,
+            "peak_ratio_p95": None,
+            "peak_ratio_max": None,
+        }
+    ratio = np.maximum(
+        res["f_plus_max"][world] / np.maximum(res["f_plus"][world], 1e-12),
+        res["f_minus_max"][world] / np.maximum(res["f_minus"][world], 1e-12),
+    )[tp]
+    return {
+        "windows": int(tp.sum()),
+        "both_frac": float(np.mean(res["both_frac"][world][tp])),
+        "peak_ratio_median": float(np.median(ratio)),
+        "peak_ratio_p95": float(np.percentile(ratio, 95)),
+        "peak_ratio_max": float(np.max(ratio)),
+    }
 
 
 #: Savitzky-Golay filter of the logged forces (the thesis filters its measurements so too)
@@ -311,6 +444,26 @@ def peak_forces(res: dict[str, np.ndarray]) -> np.ndarray:
     return np.where(res["nan"], np.nan, peak)
 
 
+def pulled_mm(res: dict[str, np.ndarray]) -> np.ndarray:
+    """How far each world's tip has risen from its start depth, per sample, mm."""
+    return res["h0_mm"] - res["depth_mm"]
+
+
+def peaks(res: dict[str, np.ndarray], skip_mm: float = 0.0) -> dict[str, np.ndarray]:
+    """Per-world peaks during the pull, N: ``fz`` (the extraction force, F/T z, filtered like
+    the thesis's measurements) and ``mag`` (|F|), over the samples after the settling time whose
+    tip has risen more than ``skip_mm`` (0: the whole pull). NaN worlds give NaN."""
+    sel = (res["time_s"] > res.get("settle_s", 0.0))[None, :] & (pulled_mm(res) > skip_mm)
+    fz = res["fz"]
+    if fz.shape[1] >= SG_WINDOW:
+        fz = savgol_filter(fz, SG_WINDOW, SG_ORDER, axis=1)
+    out = {}
+    for name, a in (("fz", fz), ("mag", force_magnitude(res))):
+        pk = np.max(np.where(sel, a, -np.inf), axis=1)
+        out[name] = np.where(res["nan"] | ~np.isfinite(pk), np.nan, pk)
+    return out
+
+
 def two_point_interval(res: dict[str, np.ndarray], world: int) -> list[float] | None:
     """[min, max] tip depth (mm) at which one world touched opposite walls (None if never)."""
     mask = res["two_point"][world] & (res["time_s"] > 0)
@@ -322,17 +475,16 @@ def two_point_interval(res: dict[str, np.ndarray], world: int) -> list[float] | 
 
 #: how the experiment's parameters are mapped onto the quasi-static model (recorded in the JSON)
 ANALYTIC_MAPPING = (
-    "Per world, the same L_C, K_lateral, K_rot, friction (spec), delta0 and beta0 as the "
-    "simulation, theta0 = 0 (the simulated peg starts centred and aligned) and h0 = the start "
-    "depth of the tip. Sign: a simulated rotation beta0 about world y tilts the peg top "
-    "towards +x, the model's tilt is the opposite, so beta0_model = -beta0_sim. rect: the error "
+    "Per world, the same L_C, K_lateral, K_rot, friction, delta0, beta0 and theta0 as the "
+    "simulation (the simulation commands the model's spring rest pose, analysis.common."
+    "rest_pose; angles in the thesis's sign) and h0 = the start depth of the tip. rect: the error "
     "lies in the world x-z plane, across the hole width w (60.1 mm), i.e. the model's case 1 "
     "(y-z plane, psi = 0; case 3 equals case 1 since there is no error across v); dual: the "
     "x-z plane through both peg axes, categories 5, 10, 9 (16-gon pegs and holes with vertices "
     "on x: the x-clearance equals R - r). The interval is the union over the worlds (and "
     "categories) of the refined (exact-statics) regions. Not modelled: robot dynamics, the "
-    "axial spring (the model prescribes the vertical motion), contact softness, the 0.3 s "
-    "ramp-in of the errors."
+    "axial spring (the model prescribes the vertical motion), contact softness, the settling-"
+    "time ramp-in of the errors."
 )
 
 
@@ -347,7 +499,7 @@ def analytic_two_point_hook(
     """Cross-check: the quasi-static two-point region (:mod:`peghole_mjx.analysis`) for the
     experiment's parameters (see :data:`ANALYTIC_MAPPING`).
 
-    ``delta0_mm``, ``beta0_rad`` (the simulation's sign): the worlds' errors (default: the
+    ``delta0_mm``, ``beta0_rad`` (thesis sign): the worlds' errors (default: the
     mean of the config's ranges). Returns ``interval_mm`` (union of the worlds' regions, tip
     depth below the mouth, or None), ``worlds_with_two_point``, ``per_category`` (each
     category's union) and ``per_world`` ([lo, hi] or None per world).
@@ -373,8 +525,8 @@ def analytic_two_point_hook(
                 K_x_N_per_mm=K,
                 K_theta_Nmm_per_rad=Kr,
                 delta0_mm=d0,
-                beta0_rad=-b0,
-                theta0_rad=0.0,
+                beta0_rad=b0,
+                theta0_rad=math.radians(cfg.theta0_deg),
                 h0_mm=h0,
                 refine=True,
             )
@@ -393,8 +545,8 @@ def analytic_two_point_hook(
             K_psi_Nmm_per_rad=Kr,
             delta_x_mm=0.0,
             delta_y_mm=d0,
-            delta_theta_rad=-b0,
-            theta0_rad=0.0,
+            delta_theta_rad=b0,
+            theta0_rad=math.radians(cfg.theta0_deg),
         )
         regions["case 1"] = (np.broadcast_to(r.h_lo, d0.shape), np.broadcast_to(r.h_hi, d0.shape))
 
@@ -423,3 +575,72 @@ def config_dict(cfg: ExperimentConfig) -> dict:
         k: (list(v) if isinstance(v, tuple) else v) for k, v in dataclasses.asdict(sim).items()
     }
     return out
+
+
+def quasi_static(
+    preset: str,
+    mu: float,
+    table: dict[str, np.ndarray],
+    h0_mm: float,
+    n_depths: int = 300,
+) -> dict[str, np.ndarray]:
+    """The quasi-static oracle (:mod:`peghole_mjx.analysis.oracle`) for each world of ``table``
+    (see :data:`ANALYTIC_MAPPING`), at ``n_depths`` tip depths from ``h0_mm`` to the mouth.
+
+    Returns ``depth_mm`` (n,), and per world and depth ``fz`` (the extraction force, N; NaN at
+    isolated three-point depths), ``f_plus`` / ``f_minus`` (normal force on the +x / -x wall
+    side, N) and ``two_point`` (contacts on both sides).
+    """
+    from peghole_mjx.analysis import dual as an_dual
+    from peghole_mjx.analysis import oracle
+    from peghole_mjx.analysis import rect as an_rect
+
+    spec = PRESETS[preset]
+    col = {k: np.asarray(table[k], float)[:, None] for k in WORLD_KEYS}
+    h = np.linspace(min(h0_mm, spec.length_mm), 0.2, n_depths)[None, :]
+    common = {"K_theta_Nmm_per_rad": col["k_rot"] / MM, "theta0_rad": col["theta0"], "mu": mu}
+    if spec.kind == "dual":
+        body, _ = an_dual.oracle_body(
+            spec,
+            None,
+            col["L_C"] / MM,
+            K_x_N_per_mm=col["k_lat"] * MM,
+            delta0_mm=col["delta0"] / MM,
+            beta0_rad=col["beta0"],
+            **common,
+        )
+        side = np.array([1.0 if "R-" in c.name else -1.0 for c in body.contacts])
+    else:
+        kr = common.pop("K_theta_Nmm_per_rad")
+        body, _ = an_rect.oracle_body(
+            spec,
+            1,
+            col["L_C"] / MM,
+            K_x_N_per_mm=col["k_lat"] * MM,
+            K_y_N_per_mm=col["k_lat"] * MM,
+            K_theta_Nmm_per_rad=kr,
+            K_phi_Nmm_per_rad=kr,
+            K_psi_Nmm_per_rad=kr,
+            delta_y_mm=col["delta0"] / MM,
+            delta_theta_rad=col["beta0"],
+            **common,
+        )
+        side = np.sign([float(np.mean(c.X)) for c in body.contacts])
+    sol = oracle.solve(body, h)
+    lam = np.where(sol.active, sol.lam, 0.0)
+    f_plus = np.sum(np.where(side > 0, lam, 0.0), axis=-1)
+    f_minus = np.sum(np.where(side < 0, lam, 0.0), axis=-1)
+    return {
+        "depth_mm": h[0],
+        "fz": np.where(sol.valid, sol.F_z, np.nan),
+        "f_plus": f_plus,
+        "f_minus": f_minus,
+        "two_point": (f_plus > 0) & (f_minus > 0),
+    }
+
+
+def quasi_static_peaks(qs: dict[str, np.ndarray], h0_mm: float, skip_mm: float = 0.0):
+    """Per-world peak of the oracle's extraction force over depths more than ``skip_mm`` above
+    the start depth, N."""
+    sel = (h0_mm - qs["depth_mm"]) > skip_mm
+    return np.nanmax(np.where(sel[None, :], qs["fz"], np.nan), axis=1)

@@ -18,8 +18,16 @@ from pathlib import Path
 import mujoco
 import numpy as np
 
-from peghole_mjx.geometry.parts import ConvexPart, hole_parts, peg_parts, peg_tip_z_m
-from peghole_mjx.geometry.specs import MM, DualSpec, PegHoleSpec
+from peghole_mjx.errors import UserInputError
+from peghole_mjx.geometry import edges
+from peghole_mjx.geometry.parts import (
+    ConvexPart,
+    hole_parts,
+    peg_parts,
+    peg_tip_z_m,
+    resolve_representation,
+)
+from peghole_mjx.geometry.specs import MM, DualSpec, PegHoleSpec, RectSpec
 
 #: where the robot model lives: inside an installed package, or the repository's mjcf/
 _PKG_MJCF = Path(__file__).resolve().parents[1] / "_mjcf"
@@ -42,6 +50,17 @@ class SimOptions:
 
     ``contact_timeconst`` defaults to twice the timestep (MuJoCo's stiffest stable value);
     ``solimp`` near 1 keeps steady penetration to micrometres, below the tightest clearance.
+
+    ``friction_timeconst`` (the pairs' ``solreffriction``, s) relaxes the frictional rows of
+    each contact on their own, slower time scale. With the frictional rows as stiff as the
+    normal one, a sliding contact in MuJoCo's convex (Anitescu-type) friction model gains a
+    separating normal velocity of about ``mu * v_slide``: a peg pulled at 20 mm/s at
+    mu = 0.266 then bounces between the walls as single-step 50-100 N impulses instead of
+    resting in two-point contact. A 1 s friction time constant removes the bounce (both walls
+    loaded in >= 94 % of physics steps in two-point windows, per-step peak ~1x the 20 ms mean)
+    while a sliding contact still carries mu * N (measured mu_eff 0.26 at mu 0.266). Evidence:
+    ``peghole models contact-check`` (benchmarks/results/contact_check.json, docs/contact.md).
+    ``None``: the frictional rows use ``solref`` (MuJoCo's default).
     """
 
     timestep: float = 0.002
@@ -52,6 +71,7 @@ class SimOptions:
     contact_timeconst: float | None = None
     contact_dampratio: float = 1.0
     solimp: tuple[float, float, float, float, float] = (0.99, 0.999, 0.0002, 0.5, 2.0)
+    friction_timeconst: float | None = 1.0
     torsional_friction: float = 0.0
     tip_gap_mm: float = 0.5  # gap between the peg tip and the hole bottom in the start pose
 
@@ -59,6 +79,13 @@ class SimOptions:
     def solref(self) -> tuple[float, float]:
         tc = self.contact_timeconst if self.contact_timeconst is not None else 2 * self.timestep
         return (tc, self.contact_dampratio)
+
+    @property
+    def solreffriction(self) -> tuple[float, float]:
+        """The pairs' ``solreffriction`` ((0, 0): MuJoCo uses ``solref`` for friction)."""
+        if self.friction_timeconst is None:
+            return (0.0, 0.0)
+        return (self.friction_timeconst, 1.0)
 
 
 def _set_options(s: mujoco.MjSpec, sim: SimOptions) -> None:
@@ -87,24 +114,44 @@ def _add_part(
     rgba: tuple[float, ...],
     mass: float | None = None,
 ) -> mujoco.MjsGeom:
-    kw = {"name": f"{prefix}{part.name}", "contype": 0, "conaffinity": 0, "rgba": list(rgba)}
+    kw = {
+        "name": f"{prefix}{part.name}",
+        "contype": 0,
+        "conaffinity": 0,
+        "rgba": list(rgba),
+        "pos": list(part.pos),
+        "quat": list(part.quat),
+    }
     if part.kind == "box":
-        geom = body.add_geom(
-            type=mujoco.mjtGeom.mjGEOM_BOX, size=list(part.half_size), pos=list(part.pos), **kw
+        geom = body.add_geom(type=mujoco.mjtGeom.mjGEOM_BOX, size=list(part.half_size), **kw)
+    elif part.kind in ("capsule", "cylinder"):
+        kind = (
+            mujoco.mjtGeom.mjGEOM_CAPSULE
+            if part.kind == "capsule"
+            else mujoco.mjtGeom.mjGEOM_CYLINDER
         )
+        geom = body.add_geom(type=kind, size=[*part.half_size, 0.0], **kw)
     else:
-        mesh = s.add_mesh(name=f"{prefix}{part.name}_mesh")
-        mesh.uservert = np.asarray(part.vertices, float).ravel().tolist()
-        geom = body.add_geom(type=mujoco.mjtGeom.mjGEOM_MESH, meshname=mesh.name, **kw)
+        # pieces naming the same ``mesh`` share one asset (MJX: one collision group per pair
+        # of mesh assets, so sharing cuts compile time and the number of groups)
+        mesh_name = f"{prefix}{part.mesh or part.name}_mesh"
+        if s.mesh(mesh_name) is None:
+            mesh = s.add_mesh(name=mesh_name)
+            mesh.uservert = np.asarray(part.vertices, float).ravel().tolist()
+        geom = body.add_geom(type=mujoco.mjtGeom.mjGEOM_MESH, meshname=mesh_name, **kw)
     if mass is not None:
         geom.mass = mass
     return geom
 
 
 def _add_peg(
-    s: mujoco.MjSpec, body: mujoco.MjsBody, spec: PegHoleSpec, single_hull: bool = False
+    s: mujoco.MjSpec,
+    body: mujoco.MjsBody,
+    spec: PegHoleSpec,
+    single_hull: bool = False,
+    representation: str | None = None,
 ) -> list[ConvexPart]:
-    parts = peg_parts(spec, single_hull=single_hull)
+    parts = peg_parts(spec, single_hull=single_hull, representation=representation)
     vols = np.array([p.volume for p in parts])
     for part, vol in zip(parts, vols, strict=True):
         _add_part(
@@ -117,10 +164,10 @@ def _add_peg(
 
 
 def _add_hole(
-    s: mujoco.MjSpec, spec: PegHoleSpec, top_z: float
+    s: mujoco.MjSpec, spec: PegHoleSpec, top_z: float, representation: str | None = None
 ) -> tuple[list[ConvexPart], mujoco.MjsBody]:
     hole = s.worldbody.add_body(name="hole", pos=[HOLE_XY_M[0], HOLE_XY_M[1], top_z], mocap=True)
-    parts = hole_parts(spec)
+    parts = hole_parts(spec, representation=representation)
     for part in parts:
         _add_part(s, hole, part, "", (0.75, 0.72, 0.65, 1.0))
     hole.add_site(name="hole_mouth", pos=[0, 0, 0], size=[0.003] * 3, group=3)
@@ -130,31 +177,88 @@ def _add_hole(
     return parts, hole
 
 
-def _add_pairs(
-    s: mujoco.MjSpec,
-    pegs: list[ConvexPart],
-    holes: list[ConvexPart],
-    spec: PegHoleSpec,
-    sim: SimOptions,
-) -> None:
-    mu = spec.friction
+def _pair_names(
+    pegs: list[ConvexPart], holes: list[ConvexPart], spec: PegHoleSpec
+) -> list[tuple[str, str]]:
+    """(peg geom, hole geom) pairs of the part representation (dual: peg i meets hole i)."""
+    out = []
     for p in pegs:
         if isinstance(spec, DualSpec) and p.name == "peg_bridge":
             continue  # the bridge stays above the block: the pegs reach the floor first
         for h in holes:
             if p.group is not None and h.group is not None and p.group != h.group:
                 continue
-            s.add_pair(
-                name=f"{p.name}__{h.name}",
-                geomname1=p.name,
-                geomname2=h.name,
-                condim=3,
-                friction=[mu, mu, sim.torsional_friction, 0.0, 0.0],
-                solref=list(sim.solref),
-                solimp=list(sim.solimp),
-                margin=0.0,
-                gap=0.0,
-            )
+            out.append((p.name, h.name))
+    return out
+
+
+def _add_pairs(
+    s: mujoco.MjSpec, names: list[tuple[str, str]], spec: PegHoleSpec, sim: SimOptions
+) -> None:
+    mu = spec.friction
+    for g1, g2 in names:
+        s.add_pair(
+            name=f"{g1}__{g2}",
+            geomname1=g1,
+            geomname2=g2,
+            condim=3,
+            friction=[mu, mu, sim.torsional_friction, 0.0, 0.0],
+            solref=list(sim.solref),
+            solreffriction=list(sim.solreffriction),
+            solimp=list(sim.solimp),
+            margin=0.0,
+            gap=0.0,
+        )
+
+
+@dataclass(frozen=True)
+class ContactCap:
+    """The contact cap of one scene kind and representation, sized from measurement.
+
+    ``measured_max``: the most active contacts (distance <= 0) seen in any world at any physics
+    step, over MuJoCo C and MJX-JAX rollouts of the env under the scripted and a random policy
+    (``benchmarks/contact_caps.py``, ``benchmarks/results/contact_caps.json``); ``cap``: the
+    ``max_contact_points`` set in the scene, above it with a margin.
+    """
+
+    measured_max: int
+    cap: int
+
+
+#: (scene kind, representation) -> measured maximum and cap (see ContactCap), measured
+#: 2026-11-29 on the 2-core CPU (8 worlds, 400 env steps in MuJoCo C, 300 in MJX-JAX, scripted
+#: and random actions; benchmarks/results/contact_caps.json). cap 0 = none: the rect scene's
+#: 5 box-box pairs allocate 20 contacts (4 each) and a random rollout makes all 20 active;
+#: the mesh scene is the exact-geometry reference and stays uncapped (47 active seen). Dual
+#: capsule: at most 22 of 68 allocated (MuJoCo C, random actions; MJX 15), so 32 allocated
+#: (a 10-contact margin).
+CONTACT_CAPS: dict[tuple[str, str], ContactCap] = {
+    ("rect", "box"): ContactCap(measured_max=20, cap=0),
+    # the edge model allocates 2 contacts per capsule-box pair (28 pairs; not yet measured)
+    ("rect", "edges"): ContactCap(measured_max=0, cap=0),
+    ("dual", "capsule"): ContactCap(measured_max=22, cap=32),
+    ("dual", "mesh"): ContactCap(measured_max=47, cap=0),  # of 136 allocated (MuJoCo C, random)
+}
+
+
+def contact_cap_for(spec: PegHoleSpec, representation: str, cap: int | None = None) -> int:
+    """The ``max_contact_points`` of a scene: ``cap`` checked, or the measured default (0: none).
+
+    Raises :class:`UserInputError` when ``cap`` is below the measured maximum of active
+    contacts of this scene (rollouts would lose contacts).
+    """
+    entry = CONTACT_CAPS.get((spec.kind, representation))
+    if cap is None:
+        return entry.cap if entry else 0
+    if cap < 0:
+        raise UserInputError(f"contact cap must be >= 0 (0: no cap), got {cap}")
+    if cap and entry and cap < entry.measured_max:
+        raise UserInputError(
+            f"contact cap {cap} is below the measured maximum of {entry.measured_max} active "
+            f"contacts of the {spec.kind} scene ({representation}): use >= {entry.measured_max}"
+            f" (default {entry.cap}) or 0 for no cap"
+        )
+    return int(cap)
 
 
 def block_top_z(spec: PegHoleSpec) -> float:
@@ -169,8 +273,17 @@ def build_scene(
     sim: SimOptions | None = None,
     ik: bool = True,
     peg_single_hull: bool = False,
+    representation: str | None = None,
+    contact_cap: int | None = None,
 ) -> mujoco.MjSpec:
     """The complete scene as an :class:`mujoco.MjSpec`.
+
+    ``representation``: the collision representation (:func:`parts.resolve_representation`):
+    for the rect parts ``edges`` (the default: tip- and mouth-edge capsules,
+    :mod:`peghole_mjx.geometry.edges`) or ``box``; for the dual parts ``capsule`` (the default),
+    ``mesh`` or ``cylinder``. ``contact_cap``: MJX's
+    ``max_contact_points`` (the most contacts allocated per world); ``None`` = the measured
+    cap of :data:`CONTACT_CAPS`, 0 = no cap; a cap below the measured maximum is refused.
 
     ``robot=True``: the iiwa with the peg welded to its tool flange, keyframes ``home`` and
     ``inserted`` (peg fully in the hole, tip ``tip_gap_mm`` above the bottom, found by IK).
@@ -178,6 +291,8 @@ def build_scene(
     ``peg_single_hull=True`` collides the peg as one convex hull (the PyBullet failure mode).
     """
     sim = sim or SimOptions()
+    rep = resolve_representation(spec, representation)
+    cap = contact_cap_for(spec, rep, contact_cap)
     top_z = block_top_z(spec)
     if robot:
         s = mujoco.MjSpec.from_file(str(ROBOT_XML))
@@ -201,9 +316,20 @@ def build_scene(
         rgba=[0.9, 0.9, 0.92, 1],
     )
     s.worldbody.add_light(name="top_light", pos=[0.5, 0, 2.0], dir=[0, 0, -1])
-    pegs = _add_peg(s, peg, spec, single_hull=peg_single_hull)
-    holes, _ = _add_hole(s, spec, top_z)
-    _add_pairs(s, pegs, holes, spec, sim)
+    pegs = _add_peg(s, peg, spec, single_hull=peg_single_hull, representation=rep)
+    holes, hole_body = _add_hole(s, spec, top_z, representation=rep)
+    if isinstance(spec, RectSpec) and rep == "edges" and not peg_single_hull:
+        pairs = edges.edge_pairs(
+            edges.add_peg_edges(peg, spec),
+            edges.add_mouth_edges(hole_body, spec),
+            pegs[0].name,
+            [h.name for h in holes],
+        )
+    else:
+        pairs = _pair_names(pegs, holes, spec)
+    _add_pairs(s, pairs, spec, sim)
+    if cap:
+        s.add_numeric(name="max_contact_points", data=[float(cap)])
     tip = peg_tip_z_m(spec)
     if robot:
         s.add_sensor(
@@ -283,11 +409,15 @@ def write_scene(
     robot: bool = True,
     sim: SimOptions | None = None,
     name: str = "scene.xml",
+    representation: str | None = None,
+    contact_cap: int | None = None,
 ) -> Path:
     """Write the scene as a self-contained MJCF (meshes inline) and return its path."""
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
-    s = build_scene(spec, robot=robot, sim=sim)
+    s = build_scene(
+        spec, robot=robot, sim=sim, representation=representation, contact_cap=contact_cap
+    )
     s.compile()
     path = out / name
     path.write_text(s.to_xml())

@@ -11,6 +11,25 @@ thesis's shapes the decomposition is exact and written down here, no CoACD neede
 * dual peg: two ``n``-gon prisms (vertices on the circle of radius ``r``, same orientation as
   the hole polygons) and a bridge box on top.
 
+That is the ``mesh`` collision representation of the dual parts (each wedge and each prism is
+one SHARED mesh placed by a pose, so MJX builds one collision group per mesh pair type, not
+one per wedge). Two more representations trade exactness for cost (:data:`REPRESENTATIONS`,
+chosen by :func:`resolve_representation`, the one place that knows the defaults):
+
+* ``capsule`` (the dual default): each peg is a capsule of radius ``r`` whose segment runs from
+  the bridge to the tip; each hole is ``n`` boxes whose inner faces form an ``n``-gon
+  CIRCUMSCRIBING the hole circle (face distance ``R`` from the axis), and the walls and floor
+  reach ``r`` deeper than the hole depth, so the rounded end below the tip clears the floor
+  when the tip (the ``peg_tip`` site, the segment's end) is at the nominal bottom. All
+  capsule-box pairs are one MJX collision group (2 contact points each, no mesh SAT).
+  The free travel is ``R - r`` towards a face and ``(R - r) / cos(pi / n)`` towards a polygon
+  vertex: the effective clearance is within ``+1 / cos(pi / n) - 1`` (+1.96 % for n = 16).
+* ``cylinder`` (MuJoCo Warp only): true cylinders against the same box walls (nominal depth:
+  the tip is flat); MJX-JAX has no cylinder-box collision.
+
+The rectangular parts are boxes in both of their representations; ``edges`` (the default) lets
+them meet only through tip- and mouth-edge capsules (:mod:`peghole_mjx.geometry.edges`).
+
 Because each peg polygon is the hole polygon scaled about the same centre, the free travel of
 the centred peg is ``R - r`` towards a vertex and ``(R - r) cos(pi / n)`` towards an edge
 midpoint: the effective clearance is within ``1 - cos(pi / n)`` (1.9 % for n = 16) of the
@@ -30,18 +49,114 @@ from typing import Literal
 
 import numpy as np
 
+from peghole_mjx.errors import UserInputError
 from peghole_mjx.geometry.specs import MM, DualSpec, PegHoleSpec, RectSpec
 
-GeomKind = Literal["box", "mesh"]
+GeomKind = Literal["box", "mesh", "capsule", "cylinder"]
+
+#: the collision representations of the dual parts (see the module docstring)
+REPRESENTATIONS = ("capsule", "mesh", "cylinder")
+#: the rectangular parts' representations: "edges" (the default: the peg box and wall boxes
+#: meet only through tip- and mouth-edge capsules, geometry/edges.py; MJX's box-box routine
+#: misses shallow tilted contacts) or "box" (peg box against wall boxes)
+RECT_REPRESENTATIONS = ("edges", "box")
+RECT_DEFAULT_REPRESENTATION = "edges"
+#: the dual default (the GPU-scale one: 2.9 MB of XLA traffic per world-step vs 66.7 MB)
+DUAL_DEFAULT_REPRESENTATION = "capsule"
+#: representations each simulator implementation can collide
+IMPL_REPRESENTATIONS = {
+    "jax": ("capsule", "mesh", "box", "edges"),
+    "warp": ("capsule", "mesh", "cylinder", "box", "edges"),
+    "c": ("capsule", "mesh", "cylinder", "box", "edges"),
+}
+
+
+def resolve_representation(
+    spec: PegHoleSpec, representation: str | None = None, impl: str | None = None
+) -> str:
+    """The collision representation a scene of ``spec`` is built with, validated.
+
+    ``None`` selects the default (``capsule`` for the dual parts, ``edges`` for the rect
+    parts). ``impl`` (``"jax"``, ``"warp"``, ``"c"`` or
+    ``None`` for no check) must be able to collide it: ``cylinder`` needs MuJoCo Warp (or C).
+    Raises :class:`UserInputError` with one line naming the problem.
+    """
+    if representation is not None and representation not in (
+        *REPRESENTATIONS,
+        *RECT_REPRESENTATIONS,
+    ):
+        raise UserInputError(
+            f"unknown collision representation {representation!r}; choose one of "
+            f"{', '.join(REPRESENTATIONS)} (dual) or {', '.join(RECT_REPRESENTATIONS)} (rect)"
+        )
+    if isinstance(spec, RectSpec):
+        rep = representation or RECT_DEFAULT_REPRESENTATION
+        if rep not in RECT_REPRESENTATIONS:
+            raise UserInputError(
+                f"representation {rep!r} is the dual parts'; for the rect parts choose one of "
+                f"{', '.join(RECT_REPRESENTATIONS)}"
+            )
+        return rep
+    rep = representation or DUAL_DEFAULT_REPRESENTATION
+    if rep in RECT_REPRESENTATIONS:
+        raise UserInputError(
+            f"representation {rep!r} is the rectangular parts'; for the dual parts choose one "
+            f"of {', '.join(REPRESENTATIONS)}"
+        )
+    if impl is not None and rep not in IMPL_REPRESENTATIONS.get(impl, ()):
+        raise UserInputError(
+            f"representation {rep!r} cannot run with impl={impl!r}: MJX-JAX has no "
+            "cylinder-box collision; use 'capsule' or 'mesh', or impl='warp' (MuJoCo Warp)"
+        )
+    return rep
+
+
+#: radius of the rounded mouth lips of the capsule holes (0: none, the mouth edge is the walls'
+#: box edge): a capsule along each wall's top inner edge, its inner surface at distance R
+LIP_RADIUS_MM = 0.0
+#: a quarter turn about x: a capsule's axis (local z) onto the local y
+_QUAT_X_M90 = np.array([np.cos(-np.pi / 4), np.sin(-np.pi / 4), 0.0, 0.0])
+
+
+def _quat_mul(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Hamilton product a * b of (w, x, y, z) quaternions."""
+    w1, x1, y1, z1 = a
+    w2, x2, y2, z2 = b
+    return np.array(
+        [
+            w1 * w2 - x1 * x2 - y1 * y2 - z1 * z2,
+            w1 * x2 + x1 * w2 + y1 * z2 - z1 * y2,
+            w1 * y2 - x1 * z2 + y1 * w2 + z1 * x2,
+            w1 * z2 + x1 * y2 - y1 * x2 + z1 * w2,
+        ]
+    )
+
+
+def _quat_z(angle: float) -> np.ndarray:
+    """Unit quaternion (w, x, y, z) of a rotation by ``angle`` about z."""
+    return np.array([np.cos(angle / 2), 0.0, 0.0, np.sin(angle / 2)])
+
+
+def _mat_from_quat(q: np.ndarray) -> np.ndarray:
+    w, x, y, z = q
+    return np.array(
+        [
+            [1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)],
+            [2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)],
+            [2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)],
+        ]
+    )
 
 
 @dataclass(frozen=True)
 class ConvexPart:
-    """One convex collision piece, in its owner's frame (metres).
+    """One convex collision piece, placed in its owner's frame by ``pos`` and ``quat`` (metres).
 
-    ``kind == "box"``: ``half_size`` and ``pos``; ``kind == "mesh"``: ``vertices`` (N x 3) given
-    directly in the owner's frame (``pos`` is zero). ``group`` tags pieces that may touch each
-    other (peg prism i only meets hole i's pieces), ``None`` meaning any.
+    ``kind == "box"``: ``half_size`` (3); ``"capsule"`` / ``"cylinder"``: ``half_size`` =
+    (radius, half length of the segment along the local z); ``"mesh"``: ``vertices`` (N x 3) in
+    the piece's local frame. Pieces with the same ``mesh`` name share one mesh asset (their
+    local vertices are equal). ``group`` tags pieces that may touch each other (peg i only meets
+    hole i's pieces), ``None`` meaning any.
     """
 
     name: str
@@ -50,21 +165,34 @@ class ConvexPart:
     half_size: np.ndarray | None = None
     vertices: np.ndarray | None = None
     group: int | None = None
+    quat: np.ndarray = field(default_factory=lambda: np.array([1.0, 0.0, 0.0, 0.0]))
+    mesh: str | None = None
 
     @property
     def volume(self) -> float:
         if self.kind == "box":
             return float(8.0 * np.prod(self.half_size))
+        if self.kind in ("capsule", "cylinder"):
+            r, h = self.half_size
+            cap = 4.0 / 3.0 * np.pi * r**3 if self.kind == "capsule" else 0.0
+            return float(np.pi * r**2 * 2 * h + cap)
         from scipy.spatial import ConvexHull
 
         return float(ConvexHull(self.vertices).volume)
 
     def corners(self) -> np.ndarray:
-        """Vertices of the piece in the owner's frame."""
+        """Vertices of the piece (capsule, cylinder: of its bounding box) in the owner's frame."""
         if self.kind == "mesh":
-            return np.asarray(self.vertices)
-        signs = np.array([[sx, sy, sz] for sx in (-1, 1) for sy in (-1, 1) for sz in (-1, 1)])
-        return self.pos + signs * self.half_size
+            local = np.asarray(self.vertices)
+        else:
+            signs = np.array([[sx, sy, sz] for sx in (-1, 1) for sy in (-1, 1) for sz in (-1, 1)])
+            if self.kind == "box":
+                half = np.asarray(self.half_size)
+            else:
+                r, h = self.half_size
+                half = np.array([r, r, h + (r if self.kind == "capsule" else 0.0)])
+            local = signs * half
+        return self.pos + local @ _mat_from_quat(self.quat).T
 
 
 def regular_polygon(
@@ -101,8 +229,11 @@ def peg_centres_m(spec: DualSpec) -> np.ndarray:
     return np.array([[half, 0.0], [-half, 0.0]])
 
 
-def hole_parts(spec: PegHoleSpec) -> list[ConvexPart]:
-    """Convex pieces of the hole block in the hole frame (mouth at z = 0, material below)."""
+def hole_parts(spec: PegHoleSpec, representation: str | None = None) -> list[ConvexPart]:
+    """Convex pieces of the hole block in the hole frame (mouth at z = 0, material below).
+
+    ``representation``: see :func:`resolve_representation` (``None``: the default).
+    """
     depth = spec.hole_depth_mm * MM
     wall, floor = spec.wall_mm * MM, spec.floor_mm * MM
     if isinstance(spec, RectSpec):
@@ -140,25 +271,72 @@ def hole_parts(spec: PegHoleSpec) -> list[ConvexPart]:
                 np.array([hw + wall, hv + wall, floor / 2]),
             ),
         ]
-    parts: list[ConvexPart] = []
+    rep = resolve_representation(spec, representation)
     n = spec.n_sides
+    parts: list[ConvexPart] = []
     for i, (centre, R_mm) in enumerate(zip(hole_centres_m(spec), spec.hole_radii_mm, strict=True)):
         R = R_mm * MM
-        inner = regular_polygon(R, n, tuple(centre))
-        outer = centre + (inner - centre) * (R + wall) / R
-        for k in range(n):
-            j = (k + 1) % n
-            quad = np.array([inner[k], inner[j], outer[j], outer[k]])
-            parts.append(
-                ConvexPart(
-                    f"hole{i + 1}_wedge{k:02d}", "mesh", vertices=prism(quad, -depth, 0.0), group=i
+        cx, cy = centre
+        if rep == "mesh":
+            # wedge k is wedge 0 turned by 2 pi k / n about the hole axis: one shared mesh
+            inner = regular_polygon(R, n)
+            outer = inner * (R + wall) / R
+            quad = np.array([inner[0], inner[1], outer[1], outer[0]])
+            wedge = prism(quad, -depth, 0.0)
+            for k in range(n):
+                parts.append(
+                    ConvexPart(
+                        f"hole{i + 1}_wedge{k:02d}",
+                        "mesh",
+                        pos=np.array([cx, cy, 0.0]),
+                        vertices=wedge,
+                        group=i,
+                        quat=_quat_z(2 * np.pi * k / n),
+                        mesh=f"hole_wedge_R{R_mm:g}",
+                    )
                 )
-            )
+            bottom = depth
+        else:
+            # boxes whose inner faces lie at distance R: an n-gon circumscribing the circle
+            # (face k's normal at angle 2 pi (k + 1/2) / n, between the mesh polygon's
+            # vertices k and k + 1); the capsule's walls reach r deeper for its rounded end
+            extra = spec.peg_radii_mm[i] * MM if rep == "capsule" else 0.0
+            bottom = depth + extra
+            half_t = (R + wall) * np.tan(np.pi / n)  # reaches the neighbour's outer corner
+            lip = LIP_RADIUS_MM * MM if rep == "capsule" else 0.0
+            top = 2 * lip  # the wall boxes start below the lips
+            for k in range(n):
+                phi = 2 * np.pi * (k + 0.5) / n
+                rc = R + wall / 2
+                parts.append(
+                    ConvexPart(
+                        f"hole{i + 1}_wall{k:02d}",
+                        "box",
+                        pos=np.array(
+                            [cx + rc * np.cos(phi), cy + rc * np.sin(phi), -(bottom + top) / 2]
+                        ),
+                        half_size=np.array([wall / 2, half_t, (bottom - top) / 2]),
+                        group=i,
+                        quat=_quat_z(phi),
+                    )
+                )
+                if lip:
+                    rl = R + lip
+                    parts.append(
+                        ConvexPart(
+                            f"hole{i + 1}_lip{k:02d}",
+                            "capsule",
+                            pos=np.array([cx + rl * np.cos(phi), cy + rl * np.sin(phi), -lip]),
+                            half_size=np.array([lip, R * np.tan(np.pi / n)]),
+                            group=i,
+                            quat=_quat_mul(_quat_z(phi), _QUAT_X_M90),
+                        )
+                    )
         parts.append(
             ConvexPart(
                 f"hole{i + 1}_floor",
                 "box",
-                np.array([centre[0], centre[1], -depth - floor / 2]),
+                np.array([cx, cy, -bottom - floor / 2]),
                 np.array([R + wall, R + wall, floor / 2]),
                 group=i,
             )
@@ -166,29 +344,50 @@ def hole_parts(spec: PegHoleSpec) -> list[ConvexPart]:
     return parts
 
 
-def peg_parts(spec: PegHoleSpec, single_hull: bool = False) -> list[ConvexPart]:
+def peg_parts(
+    spec: PegHoleSpec, single_hull: bool = False, representation: str | None = None
+) -> list[ConvexPart]:
     """Convex pieces of the peg in the peg frame (mount at z = 0, tip at z = peg_tip_z_m).
+
+    ``representation``: see :func:`resolve_representation` (``None``: the default). The
+    capsule's rounded end reaches ``r`` beyond the tip (the hole's walls and floor are that
+    much deeper); the ``peg_tip`` site stays at the end of its segment.
 
     ``single_hull=True`` returns the convex hull of the whole peg as ONE piece: what PyBullet
     (and MuJoCo, for a single non-convex mesh) collides. For the dual peg the hull fills the
     space between the pegs, so it cannot enter the holes (thesis Sec 1.6, result R6).
     """
     if single_hull:
-        verts = np.concatenate([p.corners() for p in peg_parts(spec)])
+        verts = np.concatenate([p.corners() for p in peg_parts(spec, representation="mesh")])
         return [ConvexPart("peg_hull", "mesh", vertices=verts)]
     length = spec.length_mm * MM
     if isinstance(spec, RectSpec):
         half = np.array([spec.peg_w_mm * MM / 2, spec.peg_v_mm * MM / 2, length / 2])
         return [ConvexPart("peg_body", "box", np.array([0, 0, length / 2]), half)]
+    rep = resolve_representation(spec, representation)
     bridge = spec.bridge_mm * MM
     parts: list[ConvexPart] = []
     for i, (centre, r_mm) in enumerate(zip(peg_centres_m(spec), spec.peg_radii_mm, strict=True)):
-        poly = regular_polygon(r_mm * MM, spec.n_sides, tuple(centre))
-        parts.append(
-            ConvexPart(
-                f"peg{i + 1}", "mesh", vertices=prism(poly, bridge, bridge + length), group=i
+        r = r_mm * MM
+        if rep == "mesh":
+            poly = regular_polygon(r, spec.n_sides)
+            part = ConvexPart(
+                f"peg{i + 1}",
+                "mesh",
+                pos=np.array([centre[0], centre[1], 0.0]),
+                vertices=prism(poly, bridge, bridge + length),
+                group=i,
+                mesh=f"peg_prism_r{r_mm:g}",
             )
-        )
+        else:  # capsule or cylinder: the segment from the bridge to the tip
+            part = ConvexPart(
+                f"peg{i + 1}",
+                rep,
+                pos=np.array([centre[0], centre[1], bridge + length / 2]),
+                half_size=np.array([r, length / 2]),
+                group=i,
+            )
+        parts.append(part)
     r_max = max(spec.peg_radii_mm) * MM
     half_x = 0.5 * spec.peg_distance_mm * MM + r_max
     parts.append(

@@ -1,0 +1,603 @@
+"""``peghole experiment sweep``: the compliance experiment as a batched regime sweep.
+
+The thesis never states the rotational stiffness of its Ch 2-3 experiments (erratum E12), and
+the L_C effect scales with ``K_lat L_C^2 / K_theta``; so the experiment is mapped over a grid
+(:data:`GRIDS`) instead of run at one guessed value. A cell fixes the preset, friction,
+K_theta, K_lat, beta0 (its sign included), theta0 and delta0; its worlds are L_C at tip /
+centre / top x ``repeats`` draws that scale delta0 and beta0 by factors in [0.75, 1.25]. The
+draws depend only on the seed and the repeat index, so the worlds are paired across L_C (and
+across cells). Per cell: the mean peak extraction force F_z per L_C, with and without the first
+millimetres of the pull (:data:`~peghole_mjx.experiments.compliance.EARLY_MM`), the same for
+|F|, the tip-vs-top and tip-vs-centre reductions with paired 95 % bootstrap intervals, and the
+quasi-static oracle's prediction for the same worlds.
+
+All worlds of one (preset, friction) pair run in one compiled batch, in slices of
+``batch_worlds``; each finished slice is saved under ``OUT/parts/`` and found again on a rerun
+(resume), keyed by the sweep's settings.
+"""
+
+from __future__ import annotations
+
+import csv
+import dataclasses
+import hashlib
+import itertools
+import json
+import math
+import os
+import time
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+from tqdm import tqdm
+
+from peghole_mjx.errors import UserInputError
+from peghole_mjx.experiments import compliance as cx
+from peghole_mjx.geometry.specs import MM, PRESETS
+from peghole_mjx.provenance import provenance
+
+#: thesis R1 (Sec 3.5): reductions of the mean peak extraction force, %
+R1 = {"tip_vs_top": 77.1, "tip_vs_centre": 55.6}
+BOOTSTRAP = 2000
+#: force-depth curves are kept binned on the tip depth, mm per bin
+CURVE_BIN_MM = {"rect": 2.5, "dual": 1.0}
+
+
+@dataclass(frozen=True)
+class Grid:
+    """The sweep's parameter values (SI units in the names; angles in deg, thesis sign)."""
+
+    presets: tuple[str, ...]
+    k_rot_Nm_rad: tuple[float, ...]
+    beta0_deg: tuple[float, ...]
+    mu: tuple[float, ...]
+    k_lat_N_m: tuple[float, ...] = (300.0,)
+    delta0_mm: tuple[float, ...] = (2.0,)
+    #: one extra arm per (K_theta, K_lat, delta0, mu) with this commanded tilt and beta0 = 0
+    theta0_arm_deg: float | None = None
+    repeats: int = 16
+
+    def cells(self) -> list[dict]:
+        """Every cell of the grid, in a fixed order."""
+        out = []
+        for preset, mu, kr, kl, d0 in itertools.product(
+            self.presets, self.mu, self.k_rot_Nm_rad, self.k_lat_N_m, self.delta0_mm
+        ):
+            arms = [(b, 0.0) for b in self.beta0_deg]
+            if self.theta0_arm_deg is not None:
+                arms.append((0.0, self.theta0_arm_deg))
+            for b, th in arms:
+                out.append(
+                    {
+                        "preset": preset,
+                        "mu": mu,
+                        "k_rot_Nm_rad": kr,
+                        "k_lat_N_m": kl,
+                        "delta0_mm": d0,
+                        "beta0_deg": b,
+                        "theta0_deg": th,
+                    }
+                )
+        return out
+
+    def check(self) -> Grid:
+        """Validate the values (one clear line per problem)."""
+        if not self.presets:
+            raise UserInputError("the sweep grid is empty: no presets")
+        for name in ("k_rot_Nm_rad", "beta0_deg", "mu", "k_lat_N_m", "delta0_mm"):
+            vals = getattr(self, name)
+            if len(vals) == 0:
+                raise UserInputError(f"the sweep grid is empty: no {name} values")
+            if not all(math.isfinite(v) for v in vals):
+                raise UserInputError(f"{name} values must be finite, got {list(vals)}")
+        kinds = set()
+        for p in self.presets:
+            if p not in PRESETS:
+                raise UserInputError(f"unknown preset {p!r}; known: {', '.join(PRESETS)}")
+            kinds.add(PRESETS[p].kind)
+        if len(kinds) > 1:
+            raise UserInputError("a sweep runs one geometry: rect or dual presets, not both")
+        if any(v <= 0 for v in self.k_rot_Nm_rad):
+            raise UserInputError(f"K_theta must be > 0 N m/rad, got {list(self.k_rot_Nm_rad)}")
+        if any(v <= 0 for v in self.k_lat_N_m):
+            raise UserInputError(f"K_lat must be > 0 N/m, got {list(self.k_lat_N_m)}")
+        if any(not 0 <= v <= 2 for v in self.mu):
+            raise UserInputError(f"friction must be in [0, 2], got {list(self.mu)}")
+        if any(abs(v) > 5 for v in self.beta0_deg):
+            raise UserInputError("|beta0| must be <= 5 deg (small-angle regime of the thesis)")
+        if any(v < 0 for v in self.delta0_mm):
+            raise UserInputError("delta0 must be >= 0 mm")
+        if self.repeats < 2:
+            raise UserInputError("repeats must be >= 2 (intervals need at least two draws)")
+        return self
+
+    @property
+    def geometry(self) -> str:
+        return PRESETS[self.presets[0]].kind
+
+
+#: named grids: "cpu" holds the cells that decide the question (issue's CPU subset), "full" the
+#: whole grid (one command for a GPU), "tiny" is for tests
+GRIDS: dict[str, dict[str, Grid]] = {
+    "rect": {
+        "cpu": Grid(("rect-2",), (300.0, 30.0, 3.0), (-0.2, 0.2), (0.266,)),
+        "full": Grid(
+            ("rect-2", "rect-3"),
+            (300.0, 100.0, 30.0, 10.0, 3.0),
+            (-0.2, 0.0, 0.2),
+            (0.1, 0.266),
+            k_lat_N_m=(300.0, 2000.0, 5000.0),
+            delta0_mm=(1.0, 2.0),
+            theta0_arm_deg=-0.9,
+        ),
+        "tiny": Grid(("rect-1",), (30.0,), (-0.2,), (0.266,), repeats=2),
+    },
+    "dual": {
+        "cpu": Grid(("dual-2",), (300.0, 30.0, 3.0), (-0.2, 0.2), (0.266,)),
+        "full": Grid(
+            ("dual-2", "dual-3"),
+            (300.0, 100.0, 30.0, 10.0, 3.0),
+            (-0.2, 0.0, 0.2),
+            (0.01, 0.266),
+            k_lat_N_m=(300.0, 2000.0, 5000.0),
+            delta0_mm=(1.0, 2.0),
+            theta0_arm_deg=-0.9,
+        ),
+        "tiny": Grid(("dual-1",), (30.0,), (-0.2,), (0.266,), repeats=2),
+    },
+}
+
+
+def repeat_factors(repeats: int, seed: int) -> tuple[np.ndarray, np.ndarray]:
+    """The per-repeat scale factors of delta0 and beta0 (the same for every cell and L_C)."""
+    rng = np.random.default_rng([seed, 2026])
+    return rng.uniform(0.75, 1.25, repeats), rng.uniform(0.75, 1.25, repeats)
+
+
+def cell_table(cell: dict, repeats: int, seed: int) -> dict[str, np.ndarray]:
+    """The cell's worlds: L_C (tip, centre, top) x repeats, SI, angles in rad."""
+    md, mb = repeat_factors(repeats, seed)
+    lc = np.array(cx.LC_MM[PRESETS[cell["preset"]].kind]) * MM
+    n = len(lc) * repeats
+    return {
+        "L_C": np.repeat(lc, repeats),
+        "delta0": np.tile(cell["delta0_mm"] * MM * md, len(lc)),
+        "beta0": np.tile(np.radians(cell["beta0_deg"]) * mb, len(lc)),
+        "theta0": np.full(n, math.radians(cell["theta0_deg"])),
+        "k_lat": np.full(n, cell["k_lat_N_m"]),
+        "k_rot": np.full(n, cell["k_rot_Nm_rad"]),
+    }
+
+
+def reduction_pct(tip: np.ndarray, ref: np.ndarray) -> float:
+    """Reduction of the mean peak at the tip against a reference L_C, %."""
+    return float(100.0 * (1.0 - np.mean(tip) / np.mean(ref)))
+
+
+def paired_bootstrap(
+    tip: np.ndarray, ref: np.ndarray, n: int = BOOTSTRAP, seed: int = 0
+) -> list[float]:
+    """95 % percentile interval of :func:`reduction_pct`, resampling repeats jointly."""
+    rng = np.random.default_rng(seed)
+    idx = rng.integers(0, len(tip), size=(n, len(tip)))
+    vals = 100.0 * (1.0 - tip[idx].mean(1) / ref[idx].mean(1))
+    return [float(np.percentile(vals, 2.5)), float(np.percentile(vals, 97.5))]
+
+
+def _key(obj) -> str:
+    return hashlib.sha256(json.dumps(obj, sort_keys=True, default=str).encode()).hexdigest()[:12]
+
+
+def _world_summary(res: dict, geometry: str) -> dict[str, np.ndarray]:
+    """What a slice keeps per world: peaks, contact statistics and a binned F_z curve."""
+    early = cx.EARLY_MM[geometry]
+    pk_all, pk_late = cx.peaks(res), cx.peaks(res, early)
+    nw = len(res["L_C"])
+    tp = res["two_point"]
+    both = np.array(
+        [float(np.mean(res["both_frac"][w][tp[w]])) if tp[w].any() else np.nan for w in range(nw)]
+    )
+    edges = np.arange(0.0, PRESETS_LENGTH[geometry] + 1e-9, CURVE_BIN_MM[geometry])
+    curve = np.full((nw, len(edges) - 1), np.nan)
+    moving = res["time_s"] > res["settle_s"]
+    for w in range(nw):
+        idx = np.digitize(res["depth_mm"][w], edges) - 1
+        for i in np.unique(idx[moving & (idx >= 0) & (idx < len(edges) - 1)]):
+            curve[w, i] = np.mean(res["fz"][w][moving & (idx == i)])
+    return {
+        "peak_fz": pk_all["fz"],
+        "peak_fz_late": pk_late["fz"],
+        "peak_mag": pk_all["mag"],
+        "peak_mag_late": pk_late["mag"],
+        "nan": res["nan"],
+        "penetration_mm": res["penetration_mm"],
+        "penetration_in_hole_mm": res["penetration_in_hole_mm"],
+        "two_point_samples": tp.sum(1),
+        "both_frac": both,
+        "curve_fz": curve,
+        "curve_edges_mm": edges,
+    }
+
+
+PRESETS_LENGTH = {
+    "rect": max(s.length_mm for s in PRESETS.values() if s.kind == "rect"),
+    "dual": max(s.length_mm for s in PRESETS.values() if s.kind == "dual"),
+}
+
+
+@dataclass(frozen=True)
+class SweepConfig:
+    """How a sweep runs: the grid, the seed, the slice size and the experiment's settings."""
+
+    grid: Grid
+    seed: int = 0
+    batch_worlds: int = 96
+    experiment: cx.ExperimentConfig = dataclasses.field(default_factory=cx.ExperimentConfig)
+
+    def settings(self) -> dict:
+        """Everything that determines the results (the resume key)."""
+        return {
+            "grid": dataclasses.asdict(self.grid),
+            "seed": self.seed,
+            "batch_worlds": self.batch_worlds,
+            "experiment": cx.config_dict(self.experiment),
+        }
+
+
+def run_sweep(cfg: SweepConfig, out: Path, progress: bool = True) -> dict:
+    """Run (or resume) the sweep into ``out``; returns the result dict (also written as
+    ``out/compliance_sweep_<geometry>.json`` and ``.csv``)."""
+    grid = cfg.grid.check()
+    geometry = grid.geometry
+    exp = dataclasses.replace(cfg.experiment, geometry=geometry)
+    cfg = dataclasses.replace(cfg, experiment=exp)
+    if cfg.batch_worlds < 1:
+        raise UserInputError("--batch-worlds must be >= 1")
+    out = Path(out)
+    if out.exists() and not out.is_dir():
+        raise UserInputError(f"--out {out} exists and is not a folder")
+    parts = out / "parts"
+    parts.mkdir(parents=True, exist_ok=True)
+    key = _key(cfg.settings())
+    cells = grid.cells()
+    t0 = time.time()
+    # group the cells by (preset, mu): one compiled scene each
+    groups: dict[tuple[str, float], list[int]] = {}
+    for i, c in enumerate(cells):
+        groups.setdefault((c["preset"], c["mu"]), []).append(i)
+    per_cell: dict[int, dict[str, np.ndarray]] = {}
+    n_slices = sum(
+        math.ceil(len(ix) * 3 * grid.repeats / cfg.batch_worlds) for ix in groups.values()
+    )
+    bar = tqdm(total=n_slices, desc=f"sweep {geometry}", disable=not progress)
+    for (preset, mu), ix in groups.items():
+        tabs = [cell_table(cells[i], grid.repeats, cfg.seed) for i in ix]
+        table = {k: np.concatenate([t[k] for t in tabs]) for k in cx.WORLD_KEYS}
+        owner = np.repeat(np.arange(len(ix)), 3 * grid.repeats)
+        nw = len(owner)
+        summaries = []
+        ex = None
+        for s0 in range(0, nw, cfg.batch_worlds):
+            path = parts / f"{preset}_mu{mu:g}_{key}_{s0:06d}.npz"
+            if path.exists():
+                with np.load(path) as z:
+                    summaries.append({k: z[k] for k in z.files})
+                bar.update()
+                continue
+            if ex is None:
+                ex = cx.Extraction(preset, exp, mu=mu)
+            sl = slice(s0, min(s0 + cfg.batch_worlds, nw))
+            n = sl.stop - sl.start
+            # pad the last slice to the compiled batch size (the padding is dropped)
+            pad = np.r_[np.arange(sl.start, sl.stop), np.full(cfg.batch_worlds - n, sl.start)]
+            res = ex.run(progress=False, table={k: v[pad] for k, v in table.items()})
+            summ = _world_summary(res, geometry)
+            summ = {k: (v if k == "curve_edges_mm" else v[:n]) for k, v in summ.items()}
+            tmp = path.with_suffix(".tmp.npz")
+            np.savez(tmp, **summ)
+            os.replace(tmp, path)
+            summaries.append(summ)
+            bar.update()
+        merged = {
+            k: (
+                summaries[0][k]
+                if k == "curve_edges_mm"
+                else np.concatenate([s[k] for s in summaries])
+            )
+            for k in summaries[0]
+        }
+        for j, i in enumerate(ix):
+            sel = owner == j
+            per_cell[i] = {k: (v if k == "curve_edges_mm" else v[sel]) for k, v in merged.items()}
+            per_cell[i]["table"] = tabs[j]
+    bar.close()
+    rows = [_cell_result(cells[i], per_cell[i], grid, cfg.seed) for i in range(len(cells))]
+    result = {
+        "geometry": geometry,
+        "cells": rows,
+        "best_match_R1": best_match(rows),
+        "thesis": {"R1_reduction_pct": R1, "source": cx.THESIS["source"]},
+        "settings": cfg.settings(),
+        "runtime_s": round(time.time() - t0, 1),
+        **provenance(),
+    }
+    write_results(result, out)
+    return result
+
+
+def _h0_mm(preset: str, exp: cx.ExperimentConfig) -> float:
+    """Start depth of the tip: the hole depth less the start gap above the floor."""
+    return PRESETS[preset].hole_depth_mm - exp.sim_options().tip_gap_mm
+
+
+def _cell_result(cell: dict, d: dict, grid: Grid, seed: int) -> dict:
+    geometry = PRESETS[cell["preset"]].kind
+    lcs = cx.LC_MM[geometry]
+    r = grid.repeats
+    tab = d["table"]
+    h0 = _h0_mm(cell["preset"], cx.ExperimentConfig(geometry=geometry))
+    qs = cx.quasi_static(cell["preset"], cell["mu"], tab, h0)
+    qs_late = cx.quasi_static_peaks(qs, h0, cx.EARLY_MM[geometry])
+    qs_all = cx.quasi_static_peaks(qs, h0, 0.0)
+    out = dict(cell)
+    out["n_worlds"] = len(tab["L_C"])
+    out["nan_worlds"] = int(np.sum(d["nan"]))
+    out["max_penetration_um"] = float(np.nanmax(d["penetration_mm"]) * 1e3)
+    if "penetration_in_hole_mm" in d:
+        out["max_penetration_in_hole_um"] = float(np.nanmax(d["penetration_in_hole_mm"]) * 1e3)
+    out["penetration_limit_um"] = 0.25 * PRESETS[cell["preset"]].radial_clearance_mm * 1e3
+    out["two_point_worlds"] = {
+        f"{lc:g}": int(np.sum(d["two_point_samples"][k * r : (k + 1) * r] > 0))
+        for k, lc in enumerate(lcs)
+    }
+    for metric, label in (
+        ("peak_fz_late", "peak_fz_N"),
+        ("peak_fz", "peak_fz_all_N"),
+        ("peak_mag_late", "peak_mag_N"),
+        ("peak_mag", "peak_mag_all_N"),
+    ):
+        by = [d[metric][k * r : (k + 1) * r] for k in range(3)]
+        out[label] = {f"{lc:g}": float(np.nanmean(v)) for lc, v in zip(lcs, by, strict=True)}
+        ok = np.all(np.isfinite(np.stack(by)), axis=0)
+        tip, ctr, top = (v[ok] for v in by)
+        sfx = label.replace("peak_", "").replace("_N", "")
+        for name, ref in (("tip_vs_top", top), ("tip_vs_centre", ctr)):
+            k = f"reduction_{name}_pct" + ("" if sfx == "fz" else f"_{sfx}")
+            out[k] = (
+                {
+                    "value": reduction_pct(tip, ref),
+                    "ci95": paired_bootstrap(tip, ref, seed=seed),
+                    "n_pairs": int(ok.sum()),
+                }
+                if ok.sum() >= 2
+                else {"value": None, "ci95": None, "n_pairs": int(ok.sum())}
+            )
+    qby = [qs_late[k * r : (k + 1) * r] for k in range(3)]
+    qall = [qs_all[k * r : (k + 1) * r] for k in range(3)]
+    out["quasi_static"] = {
+        "peak_fz_N": {f"{lc:g}": float(np.nanmean(v)) for lc, v in zip(lcs, qby, strict=True)},
+        "reduction_tip_vs_top_pct": reduction_pct(qby[0], qby[2]),
+        "reduction_tip_vs_centre_pct": reduction_pct(qby[0], qby[1]),
+        "reduction_tip_vs_top_all_pct": reduction_pct(qall[0], qall[2]),
+    }
+    top_lc = lcs[-1] * MM
+    out["regime_KxLc2_over_Ktheta"] = cell["k_lat_N_m"] * top_lc**2 / cell["k_rot_Nm_rad"]
+    out["curve_fz_N"] = {
+        f"{lc:g}": np.round(np.nanmean(d["curve_fz"][k * r : (k + 1) * r], axis=0), 4).tolist()
+        for k, lc in enumerate(lcs)
+    }
+    out["curve_edges_mm"] = np.round(d["curve_edges_mm"], 3).tolist()
+    return out
+
+
+def best_match(rows: list[dict]) -> dict | None:
+    """The cell whose simulated reductions are closest to R1 (Euclidean, in points)."""
+    best, dist = None, math.inf
+    for row in rows:
+        a = row["reduction_tip_vs_top_pct"]["value"]
+        b = row["reduction_tip_vs_centre_pct"]["value"]
+        if a is None or b is None:
+            continue
+        dd = math.hypot(a - R1["tip_vs_top"], b - R1["tip_vs_centre"])
+        if dd < dist:
+            best, dist = row, dd
+    if best is None:
+        return None
+    keys = ("preset", "mu", "k_rot_Nm_rad", "k_lat_N_m", "delta0_mm", "beta0_deg", "theta0_deg")
+    return {
+        "cell": {k: best[k] for k in keys},
+        "reduction_tip_vs_top_pct": best["reduction_tip_vs_top_pct"],
+        "reduction_tip_vs_centre_pct": best["reduction_tip_vs_centre_pct"],
+        "quasi_static": best["quasi_static"],
+        "distance_points": dist,
+        "r1_in_ci95_tip_vs_top": bool(
+            best["reduction_tip_vs_top_pct"]["ci95"][0]
+            <= R1["tip_vs_top"]
+            <= best["reduction_tip_vs_top_pct"]["ci95"][1]
+        ),
+    }
+
+
+CSV_COLUMNS = (
+    "preset",
+    "mu",
+    "k_rot_Nm_rad",
+    "k_lat_N_m",
+    "delta0_mm",
+    "beta0_deg",
+    "theta0_deg",
+    "n_worlds",
+    "nan_worlds",
+    "max_penetration_um",
+    "regime_KxLc2_over_Ktheta",
+)
+
+
+def write_results(result: dict, out: Path) -> list[Path]:
+    """``compliance_sweep_<geometry>.json`` (everything) and ``.csv`` (one row per cell)."""
+    g = result["geometry"]
+    jpath = out / f"compliance_sweep_{g}.json"
+    tmp = jpath.with_suffix(".json.tmp")
+    tmp.write_text(json.dumps(clean_json(result), indent=1, allow_nan=False))
+    os.replace(tmp, jpath)
+    cpath = out / f"compliance_sweep_{g}.csv"
+    lcs = cx.LC_MM[g]
+    with cpath.open("w", newline="") as f:
+        w = csv.writer(f)
+        w.writerow(
+            [*CSV_COLUMNS]
+            + [f"peak_fz_N_LC{lc:g}" for lc in lcs]
+            + ["red_tip_top_pct", "red_tip_top_lo", "red_tip_top_hi"]
+            + ["red_tip_centre_pct", "red_tip_centre_lo", "red_tip_centre_hi"]
+            + ["qs_red_tip_top_pct", "qs_red_tip_centre_pct"]
+        )
+        for row in result["cells"]:
+            t, c = row["reduction_tip_vs_top_pct"], row["reduction_tip_vs_centre_pct"]
+            w.writerow(
+                [_fmt(row[k]) for k in CSV_COLUMNS]
+                + [_fmt(row["peak_fz_N"][f"{lc:g}"]) for lc in lcs]
+                + [_fmt(t["value"]), *(_fmt(x) for x in (t["ci95"] or [None, None]))]
+                + [_fmt(c["value"]), *(_fmt(x) for x in (c["ci95"] or [None, None]))]
+                + [
+                    _fmt(row["quasi_static"]["reduction_tip_vs_top_pct"]),
+                    _fmt(row["quasi_static"]["reduction_tip_vs_centre_pct"]),
+                ]
+            )
+    return [jpath, cpath]
+
+
+def _fmt(v) -> str:
+    if v is None or (isinstance(v, float) and not math.isfinite(v)):
+        return ""
+    return f"{v:.6g}" if isinstance(v, float) else str(v)
+
+
+def clean_json(o):
+    """``o`` with NaN/inf floats as None and NumPy scalars as Python ones (valid JSON)."""
+    if isinstance(o, dict):
+        return {k: clean_json(v) for k, v in o.items()}
+    if isinstance(o, list | tuple):
+        return [clean_json(v) for v in o]
+    if isinstance(o, np.generic):
+        o = o.item()
+    if isinstance(o, float) and not math.isfinite(o):
+        return None
+    return o
+
+
+def summary_table(result: dict) -> str:
+    """A markdown table of the cells: simulated reductions with intervals beside the oracle's."""
+    g = result["geometry"]
+    lcs = cx.LC_MM[g]
+
+    def red(d):
+        if d["value"] is None:
+            return "-"
+        lo, hi = d["ci95"]
+        return f"{d['value']:.1f} [{lo:.1f}, {hi:.1f}]"
+
+    head = (
+        "| preset | mu | K_theta N m/rad | K_lat N/m | delta0 mm | beta0 deg | theta0 deg | "
+        + " | ".join(f"peak F_z L_C={lc:g} N" for lc in lcs)
+        + " | tip vs top % (95 % CI) | oracle | tip vs centre % (95 % CI) | oracle |\n|"
+        + "---|" * (11 + len(lcs))
+    )
+    rows = [head]
+    for c in result["cells"]:
+        q = c["quasi_static"]
+        rows.append(
+            f"| {c['preset']} | {c['mu']:g} | {c['k_rot_Nm_rad']:g} | {c['k_lat_N_m']:g} | "
+            f"{c['delta0_mm']:g} | {c['beta0_deg']:g} | {c['theta0_deg']:g} | "
+            + " | ".join(f"{c['peak_fz_N'][f'{lc:g}']:.3g}" for lc in lcs)
+            + f" | {red(c['reduction_tip_vs_top_pct'])} | {q['reduction_tip_vs_top_pct']:.1f} | "
+            f"{red(c['reduction_tip_vs_centre_pct'])} | {q['reduction_tip_vs_centre_pct']:.1f} |"
+        )
+    return "\n".join(rows)
+
+
+def write_figures(result: dict, out: Path) -> list[Path]:
+    """``reduction_vs_regime_<g>.png`` (simulated reductions with intervals over the oracle's,
+    against K_lat L_C,top^2 / K_theta, R1 marked) and ``force_depth_<g>.png`` (mean F_z against
+    depth per L_C: the cell nearest R1 beside a K_theta = 300 N m/rad cell)."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    g = result["geometry"]
+    out = Path(out)
+    cells = result["cells"]
+    paths = []
+    fig, axes = plt.subplots(1, 2, figsize=(11, 4.2), sharey=True)
+    arms = sorted({(c["beta0_deg"], c["theta0_deg"], c["mu"], c["preset"]) for c in cells})
+    colours = plt.rcParams["axes.prop_cycle"].by_key()["color"]
+    for ax, (key, thesis) in zip(
+        axes,
+        (("tip_vs_top", R1["tip_vs_top"]), ("tip_vs_centre", R1["tip_vs_centre"])),
+        strict=True,
+    ):
+        for i, arm in enumerate(arms):
+            sel = sorted(
+                (
+                    c
+                    for c in cells
+                    if (c["beta0_deg"], c["theta0_deg"], c["mu"], c["preset"]) == arm
+                ),
+                key=lambda c: c["regime_KxLc2_over_Ktheta"],
+            )
+            x = np.array([c["regime_KxLc2_over_Ktheta"] for c in sel])
+            sim = [c[f"reduction_{key}_pct"] for c in sel]
+            y = np.array([s["value"] if s["value"] is not None else np.nan for s in sim])
+            lo = np.array([s["ci95"][0] if s["ci95"] else np.nan for s in sim])
+            hi = np.array([s["ci95"][1] if s["ci95"] else np.nan for s in sim])
+            qs = np.array([c["quasi_static"][f"reduction_{key}_pct"] for c in sel])
+            col = colours[i % len(colours)]
+            label = f"{arm[3]} mu {arm[2]:g}, beta0 {arm[0]:+g} deg" + (
+                f", theta0 {arm[1]:g} deg" if arm[1] else ""
+            )
+            ax.plot(x, qs, "--", color=col, alpha=0.7)
+            ax.errorbar(x, y, yerr=[y - lo, hi - y], fmt="o", color=col, capsize=3, label=label)
+        if g == "rect":
+            ax.axhline(thesis, color="k", lw=1, ls=":", label=f"thesis R1 {thesis} %")
+        ax.set_xscale("log")
+        ax.set_xlabel("K_lat L_C,top^2 / K_theta  (dimensionless)")
+        ax.set_title(f"{g}: peak F_z reduction, L_C tip vs {key.split('_')[-1]}")
+        ax.axhline(0.0, color="grey", lw=0.5)
+    axes[0].set_ylabel("reduction of the mean peak F_z, %  (dashed: quasi-static oracle)")
+    axes[1].legend(fontsize=7, loc="lower right")
+    fig.tight_layout()
+    p = out / f"reduction_vs_regime_{g}.png"
+    fig.savefig(p, dpi=110)
+    plt.close(fig)
+    paths.append(p)
+
+    best = result.get("best_match_R1")
+    stiff = [c for c in cells if c["k_rot_Nm_rad"] == max(x["k_rot_Nm_rad"] for x in cells)]
+    shown = []
+    if best is not None:
+        shown.append(next(c for c in cells if all(c[k] == v for k, v in best["cell"].items())))
+    if stiff:
+        shown.append(stiff[0])
+    if shown:
+        fig, axes = plt.subplots(1, len(shown), figsize=(5.5 * len(shown), 4), squeeze=False)
+        for ax, c in zip(axes[0], shown, strict=True):
+            e = np.array(c["curve_edges_mm"])
+            mid = 0.5 * (e[1:] + e[:-1])
+            for lc, curve in c["curve_fz_N"].items():
+                ax.plot(mid, np.array(curve, float), label=f"L_C = {lc} mm")
+            ax.invert_xaxis()
+            ax.set_xlabel("tip depth below the mouth, mm")
+            ax.set_ylabel("mean F_z over the repeats, N")
+            ax.set_title(
+                f"{c['preset']} K_theta {c['k_rot_Nm_rad']:g} N m/rad, beta0 {c['beta0_deg']:+g}"
+                f" deg, mu {c['mu']:g}",
+                fontsize=9,
+            )
+            ax.legend(fontsize=8)
+        fig.tight_layout()
+        p = out / f"force_depth_{g}.png"
+        fig.savefig(p, dpi=110)
+        plt.close(fig)
+        paths.append(p)
+    return paths
