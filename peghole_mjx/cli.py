@@ -9,6 +9,7 @@ from __future__ import annotations
 import argparse
 import importlib
 import sys
+import traceback
 
 import peghole_mjx._mjx  # noqa: F401  (first: keeps mjx's import chatter off stdout)
 from peghole_mjx import __version__
@@ -25,8 +26,27 @@ GROUPS: dict[str, str] = {
 }
 
 
+#: where a traceback (a bug, not a user error) should be reported
+REPORT_BUG = "this is a bug in peghole_mjx: please report it with the traceback above"
+
+
+class Parser(argparse.ArgumentParser):
+    """argparse with one-line errors: ``peghole ...: error: ...`` and exit status 2."""
+
+    def error(self, message: str):
+        self.exit(2, f"{self.prog}: error: {message} (see {self.prog} --help)\n")
+
+
+def _one_line(exc: BaseException) -> str:
+    msg = exc.args[0] if isinstance(exc, KeyError) and exc.args else exc
+    if isinstance(exc, OSError) and exc.filename and exc.strerror:
+        msg = f"{exc.filename}: {exc.strerror}"
+    text = " ".join(str(msg).split())  # one line, whatever the message held
+    return text or type(exc).__name__
+
+
 def build_parser() -> argparse.ArgumentParser:
-    parser = argparse.ArgumentParser(
+    parser = Parser(
         prog="peghole",
         description="Simulation, analysis and learning for robotic peg-hole disassembly.",
     )
@@ -50,9 +70,15 @@ def main(argv: list[str] | None = None) -> int:
     try:
         return int(args.func(args) or 0)
     except REPORTED_ERRORS as exc:
-        msg = exc.args[0] if isinstance(exc, KeyError) and exc.args else exc
-        print(f"peghole: error: {msg}", file=sys.stderr)
+        print(f"peghole: error: {_one_line(exc)}", file=sys.stderr)
         return 2
+    except KeyboardInterrupt:
+        print("peghole: interrupted", file=sys.stderr)
+        return 130
+    except Exception:
+        traceback.print_exc()
+        print(f"peghole: internal error: {REPORT_BUG}", file=sys.stderr)
+        return 1
 
 
 if __name__ == "__main__":

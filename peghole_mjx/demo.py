@@ -20,6 +20,8 @@ import sys
 import time
 from pathlib import Path
 
+from peghole_mjx.validation import arg
+
 
 def add_parser(sub: argparse._SubParsersAction) -> None:
     p = sub.add_parser(
@@ -30,7 +32,10 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     )
     p.add_argument("--out", type=Path, default=Path("peghole_demo"), help="output directory")
     p.add_argument(
-        "--episodes", type=int, default=None, help="evaluation episodes (CPU 32, GPU 1024)"
+        "--episodes",
+        type=arg("episodes"),
+        default=None,
+        help="evaluation episodes (CPU 32, GPU 1024)",
     )
     p.add_argument(
         "--profile",
@@ -61,7 +66,10 @@ def cmd_demo(args: argparse.Namespace) -> int:
     out = args.out
     if (out / "report.md").exists():
         raise UserInputError(f"{out} already holds a demo report: choose another --out")
-    out.mkdir(parents=True, exist_ok=True)
+    from peghole_mjx import fileio
+    from peghole_mjx.validation import dumps
+
+    fileio.check_out_dir(out)
     timings: dict[str, float] = {}
 
     t = _step("1/4 build the rect-2 and dual-2 scenes")
@@ -94,11 +102,11 @@ def cmd_demo(args: argparse.Namespace) -> int:
 
     t = _step(f"4/4 evaluate the pretrained rect policy ({episodes} episodes)")
     ev = evaluate("rect", episodes)
-    (out / "evaluation.json").write_text(json.dumps(ev, indent=2) + "\n")
+    fileio.write_text(out / "evaluation.json", dumps(ev, indent=2) + "\n")
     timings["evaluation"] = time.perf_counter() - t
 
     report = _report(out, train_summary, ev, timings, profile)
-    (out / "report.md").write_text(report)
+    fileio.write_text(out / "report.md", report)
     print(report)
     print(f"report: {out / 'report.md'}", file=sys.stderr)
     return 0

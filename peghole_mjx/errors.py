@@ -2,17 +2,32 @@
 
 from __future__ import annotations
 
-from peghole_mjx.geometry.specs import InfeasibleGeometryError
+import json
+import zipfile
 
 
 class UserInputError(ValueError):
     """Bad input from the user: a missing file, a malformed mesh, an unknown option value."""
 
 
-#: Exceptions that ``peghole`` prints as ``peghole: error: ...`` with exit status 2.
+class CorruptFileError(UserInputError):
+    """A file that peghole_mjx wrote (or should have) is truncated, garbled or tampered with."""
+
+
+# after the classes above: specs validates its presets at import, with peghole_mjx.validation,
+# which imports UserInputError from here
+from peghole_mjx.geometry.specs import InfeasibleGeometryError  # noqa: E402
+
+#: Exceptions that ``peghole`` prints as ``peghole: error: ...`` with exit status 2: wrong
+#: user values, and the expected failures of files (missing, unreadable, not writable, a
+#: full disk, truncated or garbled JSON and npz). Anything else is a bug: a traceback.
 REPORTED_ERRORS: tuple[type[BaseException], ...] = (
     UserInputError,
     InfeasibleGeometryError,
-    FileNotFoundError,
     KeyError,
+    OSError,  # FileNotFoundError, PermissionError, ENOSPC, EROFS, ...
+    json.JSONDecodeError,
+    UnicodeDecodeError,
+    zipfile.BadZipFile,
+    EOFError,
 )

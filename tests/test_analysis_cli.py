@@ -11,6 +11,7 @@ import pytest
 
 from peghole_mjx.analysis import claims, figures, rect
 from peghole_mjx.cli import main
+from peghole_mjx.validation import loads as strict_json  # no bare NaN
 
 
 @pytest.fixture(scope="module")
@@ -54,7 +55,7 @@ def test_claims_json_has_all_ten_with_evidence(capsys, claims_json):
 
 def test_claims_cli_json(capsys):
     assert main(["analyze", "claims", "--json"]) == 0
-    out = json.loads(capsys.readouterr().out)
+    out = strict_json(capsys.readouterr().out)
     assert len(out) == 10
 
 
@@ -85,7 +86,7 @@ def test_jamming_cli_writes_png_and_verdict(tmp_path, capsys):
         )
         == 0
     )
-    out = json.loads(capsys.readouterr().out)
+    out = strict_json(capsys.readouterr().out)
     assert out["verdict"] == "extracts"
     assert (tmp_path / "jamming.png").stat().st_size < 150_000
     assert (
@@ -105,7 +106,7 @@ def test_jamming_cli_writes_png_and_verdict(tmp_path, capsys):
         )
         == 0
     )
-    out = json.loads(capsys.readouterr().out)
+    out = strict_json(capsys.readouterr().out)
     assert out["verdict"] == "jams" and out["exact_static_equilibrium"]["config_+"]
 
 

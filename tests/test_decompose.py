@@ -1,6 +1,5 @@
 """User CAD parts through CoACD, and the command line's handling of bad input."""
 
-import json
 import subprocess
 import sys
 
@@ -19,6 +18,7 @@ from peghole_mjx.geometry.decompose import (
     run_coacd,
 )
 from peghole_mjx.geometry.specs import PRESETS
+from peghole_mjx.validation import loads as strict_json  # no bare NaN
 
 
 @pytest.fixture(scope="module")
@@ -46,14 +46,14 @@ def test_cad_round_trip_rect1_passes_the_drop_test(rect1_stl, tmp_path, capsys):
             "--json",
         ]
     )
-    report = json.loads(capsys.readouterr().out)
+    report = strict_json(capsys.readouterr().out)
     assert rc == 0
     assert report["drop_test_passed"] and abs(report["drop_test_gap_mm"]) < 1.0
     assert report["radial_clearance_mm"] == pytest.approx(0.3, abs=0.005)
     assert report["peg"]["excess_mm"] < 0.01  # a box is its own hull
     assert report["hole"]["n_hulls"] >= 4  # a block with a hole needs at least 4 pieces
     assert report["hole_depth_mm"] == pytest.approx(150.0, abs=0.01)
-    saved = json.loads((tmp_path / "report.json").read_text())
+    saved = strict_json((tmp_path / "report.json").read_text())
     assert saved["drop_test_gap_mm"] == report["drop_test_gap_mm"]
 
 
@@ -149,7 +149,7 @@ def _cli(*args: str) -> subprocess.CompletedProcess:
                 "--length",
                 "150",
             ],
-            "peg_w_mm must be > 0",
+            "argument --peg: must be a finite number in (0, 700], got 0.0",
         ),
         (["models", "build", "--geometry", "dual", "--hole-radius", "6.1"], "needs --peg-radius"),
         (["models", "decompose", "missing_peg.stl", "missing_hole.stl"], "mesh file not found"),
@@ -203,7 +203,7 @@ def test_cli_build_writes_loadable_scenes(tmp_path):
 def test_cli_check_one_preset_json():
     res = _cli("models", "check", "--preset", "rect-2", "--no-mjx", "--json")
     assert res.returncode == 0, res.stderr
-    (row,) = json.loads(res.stdout)
+    (row,) = strict_json(res.stdout)
     for key in (
         "preset",
         "nominal_clearance_mm",

@@ -1,7 +1,6 @@
 """RectExtract and DualExtract: API, determinism, randomised resets, failure paths, rewards."""
 
 import functools
-import json
 import subprocess
 import sys
 
@@ -14,6 +13,7 @@ from peghole_mjx import envs
 from peghole_mjx.envs.base import REWARD_WEIGHTS, reward_terms
 from peghole_mjx.envs.rollout import random_policy, rollout, scripted_policy
 from peghole_mjx.errors import UserInputError
+from peghole_mjx.validation import loads as strict_json  # no bare NaN
 
 N_WORLDS = 8
 
@@ -206,6 +206,20 @@ def test_max_lateral_push_ends_in_jamming_not_a_crash(rect):
     assert (m["reward/end"] == -1).all() and (m["nan"] == 0).all()
 
 
+def test_nan_action_is_applied_as_zero_and_counted_as_a_nan_world(rect):
+    """NaN policy parameters give NaN actions: the world ends like a NaN world, and nothing
+    (gains, reward, observation) turns NaN."""
+    s = rect.reset(rect.keys(4))
+    a = np.zeros((N_WORLDS, rect.env.action_size), np.float32)
+    a[: N_WORLDS // 2] = np.nan
+    s = rect.step(s, jnp.asarray(a))
+    nan = np.asarray(s.metrics["nan"])
+    assert (nan[: N_WORLDS // 2] == 1).all() and (nan[N_WORLDS // 2 :] == 0).all()
+    assert (np.asarray(s.done)[: N_WORLDS // 2] == 1).all()
+    for x in (s.reward, s.obs, s.info["k_xy"], s.info["k_rot"], s.info["prev_action"]):
+        assert np.isfinite(np.asarray(x)).all()
+
+
 def test_reward_terms_signs_and_scales():
     rc = envs.get_default_config("RectExtract").reward_config
     t = reward_terms(-0.4, 10.0, 300.0, 0.0, 0.0, rc)  # pulling out 0.4 mm with 10 N sideways
@@ -300,7 +314,7 @@ def test_cli_rollout_scripted_rect_64_episodes():
         timeout=900,
     )
     assert res.returncode == 0, res.stderr
-    out = json.loads(res.stdout)
+    out = strict_json(res.stdout)
     for key in (
         "success_rate",
         "mean_time_s",

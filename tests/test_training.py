@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import json
 import os
+import shutil
 import signal
 import subprocess
 import sys
@@ -277,6 +278,16 @@ def test_kill_9_then_resume_continues_from_last_checkpoint(trained, tmp_path):
             break
         time.sleep(0.2)
     assert ckpt is not None, proc.stderr.read().decode() if proc.poll() is not None else "timeout"
+    # a resume while the run is still training is refused (frozen meanwhile, not finished)
+    os.kill(proc.pid, signal.SIGSTOP)
+    busy = subprocess.run(
+        _peghole("train", "--resume", str(out), "--no-progress", "--no-video"),
+        capture_output=True,
+        text=True,
+        timeout=300,
+    )
+    assert busy.returncode == 2 and f"pid {proc.pid}" in busy.stderr, busy.stderr
+    assert "Traceback" not in busy.stderr
     os.kill(proc.pid, signal.SIGKILL)
     proc.wait()
     assert not (out / "final_policy").exists()
@@ -292,6 +303,8 @@ def test_kill_9_then_resume_continues_from_last_checkpoint(trained, tmp_path):
     )
     assert res.returncode == 0, res.stderr
     assert f"at {killed_at} env steps" in res.stderr
+    assert "stale lock" in res.stderr  # the killed run's lock, taken over
+    assert not (out / "run.lock").exists()
     rows = (out / "metrics.csv").read_text().splitlines()
     steps = [int(r.split(",")[0]) for r in rows[1:]]
     assert steps == sorted(set(steps)) and steps[-1] == 1200
@@ -301,6 +314,32 @@ def test_kill_9_then_resume_continues_from_last_checkpoint(trained, tmp_path):
     summary = json.loads((out / "summary.json").read_text())
     assert summary["env_steps"] == 1200
     assert (out / "final_policy" / "params.npz").exists()
+
+
+def test_corrupt_newest_checkpoint_falls_back_and_the_run_finishes(trained, tmp_path, capsys):
+    """The two newest checkpoints keep their state: a damaged newest one is set aside, the run
+    resumes from the one before and ends with one metrics row per evaluation."""
+    from peghole_mjx.training import checkpoints
+    from peghole_mjx.training.run import TrainingRun
+
+    run, _ = trained
+    out = tmp_path / "run"
+    shutil.copytree(run.out, out, ignore=shutil.ignore_patterns("tb", "final_policy", "*.png"))
+    *_, before, newest = checkpoints.checkpoint_dirs(out / "checkpoints")
+    assert checkpoints.has_state(before) and newest.name == "step_0000004000"
+    state = newest / "state.npz"
+    data = bytearray(state.read_bytes())
+    data[len(data) // 2] ^= 0xFF
+    state.write_bytes(bytes(data))
+    capsys.readouterr()
+    summary = TrainingRun.resume(out, progress=False, render=False).run(resume=True)
+    err = capsys.readouterr().err
+    assert "step_0000004000 is corrupt" in err and "at 3600 env steps" in err
+    steps = [int(r.split(",")[0]) for r in (out / "metrics.csv").read_text().splitlines()[1:]]
+    assert steps == list(range(0, LEARN_STEPS + 1, 400))  # none missing, none twice
+    assert summary["env_steps"] == LEARN_STEPS
+    assert (out / "checkpoints" / "step_0000004000.corrupt").is_dir()
+    checkpoints.verify(newest, checkpoints.STATE_FILES)  # written again, intact
 
 
 def test_bad_training_config_is_rejected_with_the_reason():

@@ -2,12 +2,13 @@
 
 from __future__ import annotations
 
-import json
 import math
 import time
 from pathlib import Path
 
+from peghole_mjx import fileio
 from peghole_mjx.errors import UserInputError
+from peghole_mjx.validation import arg, dumps, finite_float
 
 
 def add_parser(subparsers) -> None:
@@ -52,8 +53,10 @@ def add_parser(subparsers) -> None:
     j.add_argument("--preset", help="peg-hole preset (default dual-2 or rect-1)")
     j.add_argument("--category", default="5", help="dual contact category 5, 10 or 9 (default 5)")
     j.add_argument("--case", type=int, default=2, help="rect case 1, 2 or 3 (default 2)")
-    j.add_argument("--depth", type=float, required=True, help="insertion depth h (mm)")
-    j.add_argument("--mu", type=float, help="friction coefficient (default: the preset's)")
+    j.add_argument("--depth", type=finite_float, required=True, help="insertion depth h (mm)")
+    j.add_argument(
+        "--mu", type=arg("friction"), help="friction coefficient in [0, 2] (default: the preset's)"
+    )
     j.add_argument("--wrench", help="F_x,F_z,M in N,N,N mm (e.g. 0.5,2,10)")
     j.add_argument("--out", help="directory for jamming.png and jamming.json")
     j.set_defaults(func=_jamming)
@@ -64,6 +67,7 @@ def _figure(args) -> int:
     from peghole_mjx.analysis import figures
 
     ids = figures.resolve(args.id)
+    fileio.check_out_dir(args.out)
     t0 = time.perf_counter()
     for fid in ids:
         csv_path, png_path = figures.write_family(fid, args.out)
@@ -80,11 +84,11 @@ def _claims(args) -> int:
 
     result = claims.evaluate()
     if args.json:
-        print(json.dumps(result, indent=2))
+        print(dumps(result, indent=2))
         return 0
     for c in result:
         print(f"{c['id']}: reproduced={str(c['reproduced']).lower()}  {c['statement']}")
-        print("    evidence: " + json.dumps(c["evidence"])[:600])
+        print("    evidence: " + dumps(c["evidence"])[:600])
     return 0
 
 
@@ -115,6 +119,8 @@ def _jamming(args) -> int:
         label = f"rect {args.preset or rect.FIGURE_PRESET}, case {args.case}"
     if not hasattr(spec, "kind") or args.geometry != spec.kind:
         raise UserInputError(f"preset {args.preset!r} is not a {args.geometry} peg-hole")
+    if args.out:
+        fileio.check_out_dir(args.out)
     r = abs(float(plus.w_peg)) / 2
     two_c = float(plus.two_c)
     mu = spec.friction if args.mu is None else args.mu
@@ -152,13 +158,13 @@ def _jamming(args) -> int:
         import matplotlib.pyplot as plt
 
         outdir = Path(args.out)
-        outdir.mkdir(parents=True, exist_ok=True)
         fig, ax = plt.subplots(figsize=(5.5, 4.5))
         jamming.plot(ax, d, points, title=f"{label}, h = {args.depth:g} mm, lambda = {d.lam:.3g}")
         fig.tight_layout()
-        fig.savefig(outdir / "jamming.png", dpi=110)
+        with fileio.atomic_open(outdir / "jamming.png", "wb") as fh:
+            fig.savefig(fh, dpi=110, format="png")
         plt.close(fig)
-        (outdir / "jamming.json").write_text(json.dumps(out, indent=2))
+        fileio.write_text(outdir / "jamming.json", dumps(out, indent=2))
         out["png"] = str(outdir / "jamming.png")
-    print(json.dumps(out, indent=2))
+    print(dumps(out, indent=2))
     return 0

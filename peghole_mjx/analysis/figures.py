@@ -390,7 +390,10 @@ def _plot(path: Path, fam: Family, panels: list[Panel]) -> None:
         fontsize=9,
     )
     fig.tight_layout()
-    fig.savefig(path, dpi=110 if n <= 6 else 80)
+    from peghole_mjx import fileio
+
+    with fileio.atomic_open(path, "wb") as fh:  # a failed write keeps the old figure
+        fig.savefig(fh, dpi=110 if n <= 6 else 80, format="png")
     plt.close(fig)
 
 
@@ -407,7 +410,9 @@ def write_family(fig_id: str, out_dir: str | Path) -> tuple[Path, Path]:
         for k in r:
             if k not in keys:
                 keys.append(k)
-    with csv_path.open("w", newline="") as fh:
+    from peghole_mjx import fileio
+
+    with fileio.atomic_open(csv_path, "w") as fh:
         w = csv.DictWriter(fh, fieldnames=keys)
         w.writeheader()
         w.writerows(rows)

@@ -193,6 +193,11 @@ def reward_terms(
     }
 
 
+def _clean_action(action: jax.Array) -> jax.Array:
+    """The action clipped to [-1, 1], NaN entries set to 0 (the step also flags the world)."""
+    return jnp.clip(jnp.where(jnp.isnan(action), 0.0, action), -1.0, 1.0)
+
+
 def _rotz(a):
     c, s = jnp.cos(a), jnp.sin(a)
     return jnp.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
@@ -219,6 +224,46 @@ def _check_override_keys(config: config_dict.ConfigDict, overrides: dict) -> Non
                     + (f" (it has: {', '.join(have)})" if have else "")
                 )
             node, path = node[part], [*path, part]
+
+
+def _check_config_values(config: config_dict.ConfigDict) -> None:
+    """Every number of the env config is finite, and the ones a user sets are in range."""
+    from peghole_mjx.validation import RANGES, check_finite_tree
+
+    check_finite_tree(config.to_dict(), "env config")
+
+    def need(cond: bool, what: str) -> None:
+        if not cond:
+            raise UserInputError(f"env config: {what}")
+
+    need(config.ctrl_dt > 0 and config.sim_dt > 0, "ctrl_dt and sim_dt must be > 0")
+    need(
+        isinstance(config.episode_length, int) and config.episode_length >= 1,
+        f"episode_length must be an integer >= 1, got {config.episode_length!r}",
+    )
+    r = config.randomization
+    for key in ("lateral_error_mm", "angular_error_deg", "hole_xy_mm", "hole_yaw_deg"):
+        need(r[key] >= 0, f"randomization.{key} must be >= 0, got {r[key]!r}")
+    for key in ("friction_scale", "stiffness_N_m"):
+        pair = tuple(r[key])
+        need(
+            len(pair) == 2 and 0 <= pair[0] <= pair[1],
+            f"randomization.{key} must be a range (lo, hi) with 0 <= lo <= hi, got {pair!r}",
+        )
+    mu = get_preset(config.preset).friction * r.friction_scale[1]
+    fr = RANGES["friction"]
+    need(
+        fr.problem(mu) is None,
+        f"randomization.friction_scale gives friction {mu:g}, outside [0, {fr.hi:g}]",
+    )
+    a = config.action
+    for key in ("max_step_offset_mm", "max_speed_m_s", "max_force_step_N", "max_ff_xy_N"):
+        need(a[key] >= 0, f"action.{key} must be >= 0, got {a[key]!r}")
+    s = config.stiffness
+    need(
+        0 < s.k_xy_min_N_m <= s.k_xy_max_N_m and 0 < s.k_rot_min_Nm_rad <= s.k_rot_max_Nm_rad,
+        "stiffness bounds must satisfy 0 < min <= max",
+    )
 
 
 class PegHoleEnv:
@@ -264,7 +309,11 @@ class PegHoleEnv:
         config = config_dict.ConfigDict(config)
         if config_overrides:
             _check_override_keys(config, config_overrides)
-            config.update_from_flattened_dict(config_overrides)
+            try:
+                config.update_from_flattened_dict(config_overrides)
+            except (TypeError, ValueError) as exc:
+                raise UserInputError(f"bad env config override: {exc}") from None
+        _check_config_values(config)
         self._config = config
         config.lock()
         if config.impl not in ("jax", "warp"):
@@ -364,7 +413,7 @@ class PegHoleEnv:
     def action_size(self) -> int:
         return 6 + len(self.compliance_actions)
 
-    @property
+    @functools.cached_property
     def observation_size(self) -> int:
         out = jax.eval_shape(self.reset, jax.random.PRNGKey(0))
         return int(out.obs.shape[-1])
@@ -550,7 +599,7 @@ class PegHoleEnv:
     # ------------------------------------------------------------------ step
     def _decode_action(self, action, info):
         """Commanded tip pose, feed-forward force, k_xy, K_theta and L_C after this action."""
-        c, a = self._config, jnp.clip(action, -1.0, 1.0)
+        c, a = self._config, _clean_action(action)
         H = info["hole_mat"]
         dxy = a[:2] * c.action.max_step_offset_mm * MM
         dz = a[2] * c.action.max_speed_m_s * c.ctrl_dt
@@ -608,6 +657,9 @@ class PegHoleEnv:
             state.data, info, info["cmd_tip"], cmd_tip, wrench_ff, k_xy, k_rot, L_C
         )
         finite = jnp.all(jnp.isfinite(data.qpos)) & jnp.all(jnp.isfinite(data.qvel))
+        # a NaN action (NaN policy parameters) is applied as 0 and ends the episode like a NaN
+        # world (counted in nan_worlds)
+        finite = finite & jnp.all(jnp.isfinite(action))
         # a NaN world keeps its last finite state and ends its episode; the batch goes on
         data = jax.tree.map(lambda new, old: jnp.where(finite, new, old), data, state.data)
         nan = 1.0 - finite.astype(jnp.float32)
@@ -643,7 +695,7 @@ class PegHoleEnv:
             L_C=jnp.asarray(L_C, jnp.float32),
             depth_mm=depth,
             jam_time=jam_time,
-            prev_action=jnp.clip(action, -1.0, 1.0),
+            prev_action=_clean_action(action),
             step=step,
             success=success,
             failure=failure,

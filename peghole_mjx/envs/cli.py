@@ -7,6 +7,7 @@ import json
 import sys
 
 from peghole_mjx.errors import UserInputError
+from peghole_mjx.validation import arg, dumps
 
 
 def _override(text: str) -> tuple[str, object]:
@@ -42,8 +43,8 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
         default="scripted",
         help="scripted | random | a policy: pretrained name (rect, dual), policy or run directory",
     )
-    r.add_argument("--episodes", type=int, default=64)
-    r.add_argument("--seed", type=int, default=0)
+    r.add_argument("--episodes", type=arg("episodes"), default=64)
+    r.add_argument("--seed", type=arg("seed"), default=0)
     r.add_argument("--preset", help="override the env's preset (same geometry kind)")
     r.add_argument(
         "--set",
@@ -69,8 +70,6 @@ def cmd_rollout(args: argparse.Namespace) -> int:
     from peghole_mjx.envs import load
     from peghole_mjx.envs.rollout import rollout
 
-    if args.episodes < 1:
-        raise UserInputError("--episodes must be >= 1")
     overrides = dict(args.overrides)
     if args.preset:
         overrides["preset"] = args.preset
@@ -102,7 +101,7 @@ def cmd_rollout(args: argparse.Namespace) -> int:
         "physics_steps_per_s": round(res.physics_steps_per_s, 1),
     }
     if args.json:
-        print(json.dumps({**summary, **timing}))
+        print(dumps({**summary, **timing}))
     else:
         print(
             f"{args.env} ({env.config.preset}), policy {args.policy}, "

@@ -3,23 +3,26 @@
 from __future__ import annotations
 
 import argparse
-import json
 import sys
 from pathlib import Path
 
+from peghole_mjx import fileio
 from peghole_mjx.errors import UserInputError
 from peghole_mjx.geometry.specs import PRESETS, dual_spec, get_preset, rect_spec
+from peghole_mjx.validation import arg, dumps
+
+_size = arg("size_mm")
 
 
 def _pair(text: str) -> tuple[float, float]:
-    """Parse ``"60.1x40.1"`` (mm) into a pair of floats."""
+    """Parse ``"60.1x40.1"`` (mm) into a pair of sizes."""
     try:
         a, b = text.lower().split("x")
-        return float(a), float(b)
     except ValueError:
         raise argparse.ArgumentTypeError(
             f"expected WxV in mm, e.g. 60.1x40.1, got {text!r}"
         ) from None
+    return _size(a), _size(b)
 
 
 def add_parser(sub: argparse._SubParsersAction) -> None:
@@ -68,11 +71,13 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     b.add_argument("--geometry", choices=["rect", "dual"])
     b.add_argument("--hole", type=_pair, help="rect: hole W x V in mm, e.g. 60.1x40.1")
     b.add_argument("--peg", type=_pair, help="rect: peg W' x V' in mm, e.g. 59.8x39.8")
-    b.add_argument("--hole-radius", type=float, help="dual: hole radius R in mm")
-    b.add_argument("--peg-radius", type=float, help="dual: peg radius r in mm")
-    b.add_argument("--distance", type=float, help="dual: centre distance D (pegs and holes), mm")
-    b.add_argument("--length", type=float, help="peg length in mm (hole depth = length)")
-    b.add_argument("--friction", type=float, help="Coulomb friction (default: preset's)")
+    b.add_argument("--hole-radius", type=_size, help="dual: hole radius R in mm")
+    b.add_argument("--peg-radius", type=_size, help="dual: peg radius r in mm")
+    b.add_argument("--distance", type=_size, help="dual: centre distance D (pegs and holes), mm")
+    b.add_argument("--length", type=_size, help="peg length in mm (hole depth = length)")
+    b.add_argument(
+        "--friction", type=arg("friction"), help="Coulomb friction in [0, 2] (default: preset's)"
+    )
     b.add_argument(
         "--representation",
         help="collision representation: dual capsule (default), mesh (exact 16-gon parts) or "
@@ -98,21 +103,32 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     d.add_argument("hole_mesh", type=Path)
     d.add_argument("--out", required=True, type=Path)
     d.add_argument("--units", default="mm", choices=["mm", "cm", "m"], help="mesh units")
-    d.add_argument("--threshold", type=float, default=0.01, help="CoACD concavity threshold")
-    d.add_argument("--resolution", type=int, default=2000, help="CoACD sampling resolution")
-    d.add_argument("--preprocess-resolution", type=int, default=50)
-    d.add_argument("--max-convex-hull", type=int, default=-1, help="CoACD hull cap (-1: none)")
-    d.add_argument("--max-ch-vertex", type=int, default=64, help="vertices per hull cap")
-    d.add_argument("--mcts-iterations", type=int, default=150)
-    d.add_argument("--seed", type=int, default=0)
+    d.add_argument(
+        "--threshold", type=arg("threshold"), default=0.01, help="CoACD concavity threshold"
+    )
+    d.add_argument(
+        "--resolution", type=arg("resolution"), default=2000, help="CoACD sampling resolution"
+    )
+    d.add_argument("--preprocess-resolution", type=arg("preprocess_resolution"), default=50)
+    d.add_argument(
+        "--max-convex-hull",
+        type=arg("max_convex_hull"),
+        default=-1,
+        help="CoACD hull cap (-1: none)",
+    )
+    d.add_argument(
+        "--max-ch-vertex", type=arg("max_ch_vertex"), default=64, help="vertices per hull cap"
+    )
+    d.add_argument("--mcts-iterations", type=arg("mcts_iterations"), default=150)
+    d.add_argument("--seed", type=arg("seed"), default=0)
     d.add_argument(
         "--clearance-mm",
-        type=float,
+        type=arg("clearance_mm"),
         help="radial clearance; default: measured from the assembled meshes",
     )
-    d.add_argument("--warn-fraction", type=float, default=0.25)
-    d.add_argument("--friction", type=float, default=0.266)
-    d.add_argument("--peg-mass", type=float, help="peg mass in kg (default: PLA density)")
+    d.add_argument("--warn-fraction", type=arg("warn_fraction"), default=0.25)
+    d.add_argument("--friction", type=arg("friction"), default=0.266)
+    d.add_argument("--peg-mass", type=arg("mass_kg"), help="peg mass in kg (default: PLA density)")
     d.add_argument(
         "--drop-test",
         action="store_true",
@@ -133,6 +149,8 @@ def cmd_check(args: argparse.Namespace) -> int:
     )
 
     names = args.preset or list(PRESETS)
+    if args.out:
+        fileio.check_out_file(args.out)
     jobs = []
     for name in names:
         spec = PRESETS[name]
@@ -153,12 +171,12 @@ def cmd_check(args: argparse.Namespace) -> int:
     if args.out:
         from peghole_mjx.provenance import provenance
 
-        args.out.parent.mkdir(parents=True, exist_ok=True)
-        args.out.write_text(
-            json.dumps({**provenance(), "presets": [r.as_dict() for r in rows]}, indent=2) + "\n"
+        fileio.write_text(
+            args.out,
+            dumps({**provenance(), "presets": [r.as_dict() for r in rows]}, indent=2) + "\n",
         )
     if args.json:
-        print(json.dumps([r.as_dict() for r in rows], indent=2))
+        print(dumps([r.as_dict() for r in rows], indent=2))
     else:
         hdr = (
             f"{'preset':8} {'repr':8} {'nominal mm':>10} {'eff min mm':>10} {'eff max mm':>10} "
@@ -211,14 +229,28 @@ def spec_from_args(args: argparse.Namespace):
 
 
 def cmd_build(args: argparse.Namespace) -> int:
-    from peghole_mjx.geometry.mjcf import write_scene
+    """Both scenes are built and compiled in memory first, then written together (both
+    files or neither)."""
+    from peghole_mjx.geometry.mjcf import build_scene
     from peghole_mjx.geometry.parts import resolve_representation
 
     spec = spec_from_args(args)
     rep = resolve_representation(spec, args.representation)
+    fileio.check_out_dir(args.out)
     kw = {"representation": rep, "contact_cap": args.contact_cap}
-    scene = write_scene(spec, args.out, robot=True, name="scene.xml", **kw)
-    free = write_scene(spec, args.out, robot=False, name="free_peg.xml", **kw)
+    xml = {}
+    for name, robot in (("scene.xml", True), ("free_peg.xml", False)):
+        try:
+            s = build_scene(spec, robot=robot, **kw)
+            s.compile()
+        except RuntimeError as exc:  # the inserted pose's inverse kinematics
+            raise UserInputError(
+                f"the robot cannot reach this geometry's inserted pose ({exc}); keep every "
+                f"size within the robot's reach"
+            ) from None
+        xml[args.out / name] = s.to_xml()
+    fileio.write_many(xml)
+    scene, free = args.out / "scene.xml", args.out / "free_peg.xml"
     print(f"wrote {scene} and {free} (collision representation: {rep})")
     print(
         f"  nominal diametral clearance {spec.clearance_mm:.3f} mm; view with: "
@@ -232,6 +264,7 @@ def cmd_decompose(args: argparse.Namespace) -> int:
 
     from peghole_mjx.geometry.decompose import CoacdParams, DecompositionWarning, decompose_parts
 
+    fileio.check_out_dir(args.out)
     params = CoacdParams(
         threshold=args.threshold,
         max_convex_hull=args.max_convex_hull,
@@ -266,9 +299,9 @@ def cmd_decompose(args: argparse.Namespace) -> int:
         gap = drop_gap_mujoco(m, report.hole_depth_mm * 1e-3)
         out["drop_test_gap_mm"] = gap
         out["drop_test_passed"] = gap <= DROP_TOLERANCE_MM
-        (Path(args.out) / "report.json").write_text(json.dumps(out, indent=2))
+        fileio.write_text(Path(args.out) / "report.json", dumps(out, indent=2))
     if args.json:
-        print(json.dumps(out, indent=2))
+        print(dumps(out, indent=2))
     else:
         for part in ("peg", "hole"):
             dv = out[part]

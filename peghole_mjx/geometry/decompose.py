@@ -13,7 +13,6 @@ hulls then eat the clearance.
 
 from __future__ import annotations
 
-import json
 import math
 import warnings
 from dataclasses import asdict, dataclass, field
@@ -48,6 +47,24 @@ class CoacdParams:
     max_ch_vertex: int = 64  # MJX: keep hulls small (stack notes: <= 64)
     seed: int = 0
 
+    def __post_init__(self):
+        """Refuse values CoACD aborts on or never finishes with (ranges in
+        ``peghole_mjx.validation.RANGES``)."""
+        from peghole_mjx.validation import check
+
+        for name in (
+            "threshold",
+            "max_convex_hull",
+            "preprocess_resolution",
+            "resolution",
+            "mcts_iterations",
+            "max_ch_vertex",
+            "seed",
+        ):
+            check(name, getattr(self, name), f"CoACD {name}")
+        if self.preprocess_mode not in ("auto", "on", "off"):
+            raise UserInputError("CoACD preprocess_mode must be auto, on or off")
+
 
 def load_mesh(path: str | Path, units: str = "mm"):
     """Load an STL/OBJ/PLY file as one watertight trimesh in metres.
@@ -64,6 +81,8 @@ def load_mesh(path: str | Path, units: str = "mm"):
         raise UserInputError(f"mesh file not found: {path}")
     try:
         mesh = trimesh.load(path, force="mesh", process=True)
+    except ImportError:  # trimesh guesses a text encoding (an optional module) for garbage
+        raise UserInputError(f"cannot read mesh {path}: not a valid STL, OBJ or PLY file") from None
     except Exception as exc:  # trimesh raises many types for malformed files
         raise UserInputError(f"cannot read mesh {path}: {exc}") from None
     if not isinstance(mesh, trimesh.Trimesh) or len(mesh.faces) == 0:
@@ -281,9 +300,10 @@ def write_user_mjcf(
     lift = hole.bounds[1, 2] - tip[2]
     s.add_key(name="mouth", qpos=[0, 0, lift, 1, 0, 0, 0])
     s.compile()
+    from peghole_mjx import fileio
+
     out.mkdir(parents=True, exist_ok=True)
-    path = out / "user_peghole.xml"
-    path.write_text(s.to_xml())
+    path = fileio.write_text(out / "user_peghole.xml", s.to_xml())
     return path, depth
 
 
@@ -306,6 +326,14 @@ def decompose_parts(
     warn_fraction: float = WARN_FRACTION,
 ) -> DecomposeReport:
     """The whole user-part pipeline: load, decompose, measure, write MJCF and report.json."""
+    from peghole_mjx.validation import check, dumps
+
+    friction = check("friction", friction)
+    warn_fraction = check("warn_fraction", warn_fraction)
+    if peg_mass_kg is not None:
+        peg_mass_kg = check("peg_mass_kg", peg_mass_kg, kind="mass_kg")
+    if clearance_mm is not None:
+        clearance_mm = check("clearance_mm", clearance_mm)
     peg = load_mesh(peg_path, units)
     hole = load_mesh(hole_path, units)
     if clearance_mm is None:
@@ -341,7 +369,9 @@ def decompose_parts(
         str(path),
         None if depth is None else depth / MM,
     )
-    (out / "report.json").write_text(json.dumps(report.as_dict(), indent=2))
+    from peghole_mjx import fileio
+
+    fileio.write_text(out / "report.json", dumps(report.as_dict(), indent=2))
     return report
 
 

@@ -123,11 +123,20 @@ PegHoleSpec = RectSpec | DualSpec
 
 
 def _require_positive(values: dict[str, float]) -> None:
+    from peghole_mjx.validation import RANGES  # the robot's reach and mass limits
+
     for name, v in values.items():
         if not (isinstance(v, int | float) and math.isfinite(v)):
             raise InfeasibleGeometryError("finite size", f"{name} must be a finite number", {})
         if v <= 0:
             raise InfeasibleGeometryError("positive size", f"{name} must be > 0", {name: v})
+        limit = RANGES["mass_kg" if name.endswith("_kg") else "size_mm"]
+        if v > limit.hi:
+            raise InfeasibleGeometryError(
+                "within reach" if name.endswith("_mm") else "mass limit",
+                f"{name} exceeds {limit.hi:g}" + (f" ({limit.why_hi})" if limit.why_hi else ""),
+                {name: v},
+            )
 
 
 def check_rect_extractable(hole_w: float, hole_v: float, peg_w: float, peg_v: float) -> None:
@@ -223,7 +232,7 @@ def validate(spec: PegHoleSpec) -> PegHoleSpec:
             )
     else:
         raise TypeError(f"not a peg-hole spec: {type(spec).__name__}")
-    if not 0.0 <= spec.friction <= 2.0:
+    if not (isinstance(spec.friction, int | float) and 0.0 <= spec.friction <= 2.0):
         raise InfeasibleGeometryError(
             "0 <= mu <= 2", "friction out of range", {"mu": spec.friction}
         )

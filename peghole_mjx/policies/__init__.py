@@ -18,6 +18,8 @@ from __future__ import annotations
 
 import functools
 import json
+import shutil
+import zipfile
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -26,7 +28,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from peghole_mjx.errors import UserInputError
+from peghole_mjx.errors import CorruptFileError, UserInputError
 
 POLICY_DIR = Path(__file__).resolve().parent
 #: committed pretrained policies: name -> directory inside the package
@@ -55,7 +57,23 @@ class PolicyBundle:
         from peghole_mjx.envs import load
 
         over = {**self.env_overrides, **(extra_overrides or {})}
-        return load(self.env_name, config_overrides=over or None)
+        env = load(self.env_name, config_overrides=over or None)
+        self.check_env(env)
+        return env
+
+    def check_env(self, env) -> None:
+        """Refuse an env whose name or observation/action sizes differ from the policy's."""
+        net = self.meta["network"]
+        name = type(env).__name__
+        if name != self.env_name:
+            raise UserInputError(f"{self.path}: a policy for {self.env_name}, not for {name}")
+        have = (env.observation_size, env.action_size)
+        want = (int(net["observation_size"]), int(net["action_size"]))
+        if have != want:
+            raise UserInputError(
+                f"{self.path}: the policy takes observations of size {want[0]} and gives "
+                f"actions of size {want[1]}; this {name} has {have[0]} and {have[1]}"
+            )
 
     def policy_fn(self):
         """``policy(params, obs, rng) -> action`` (deterministic: the mode of the policy)."""
@@ -110,14 +128,27 @@ def init_params(network: dict[str, Any], seed: int = 0):
     return norm, nets.policy_network.init(jax.random.PRNGKey(seed))
 
 
-def save_policy(path: str | Path, params, meta: dict[str, Any]) -> Path:
-    """Write ``policy.json`` and ``params.npz`` into ``path`` (created)."""
+def save_policy(path: str | Path, params, meta: dict[str, Any], atomic: bool = True) -> Path:
+    """Write ``policy.json`` and ``params.npz`` into ``path``.
+
+    ``atomic``: both files are written into a temporary folder that then replaces ``path``
+    (both files or neither); otherwise into ``path`` itself (already a temporary folder).
+    """
+    from peghole_mjx import fileio
+
     path = Path(path)
-    path.mkdir(parents=True, exist_ok=True)
+    target = path.with_name(path.name + ".tmp") if atomic else path
+    if atomic and target.exists():
+        shutil.rmtree(target)
+    target.mkdir(parents=True, exist_ok=True)
     leaves = jax.tree.leaves(jax.device_get(params))
-    np.savez(path / "params.npz", **{f"leaf_{i:04d}": np.asarray(x) for i, x in enumerate(leaves)})
+    arrays = {f"leaf_{i:04d}": np.asarray(x) for i, x in enumerate(leaves)}
+    fileio.write_bytes_with(target / "params.npz", lambda f: np.savez(f, **arrays))
     meta = {"format_version": FORMAT_VERSION, **meta}
-    (path / "policy.json").write_text(json.dumps(meta, indent=2, default=_json_default) + "\n")
+    text = json.dumps(meta, indent=2, default=_json_default) + "\n"
+    fileio.write_text(target / "policy.json", text)
+    if atomic:
+        fileio.replace_dir(target, path)
     return path
 
 
@@ -139,40 +170,102 @@ def resolve_policy_path(name: str | Path) -> Path:
     path = Path(name)
     if (path / "policy.json").exists():
         return path
-    # a run directory: its final policy, else its latest checkpoint
+    # a run directory: its final policy, else its newest intact checkpoint (step_N.tmp and
+    # other unfinished folders are not checkpoints)
     if (path / "final_policy" / "policy.json").exists():
         return path / "final_policy"
-    ckpts = sorted((path / "checkpoints").glob("step_*")) if (path / "checkpoints").is_dir() else []
-    ckpts = [c for c in ckpts if (c / "policy.json").exists()]
-    if ckpts:
-        return ckpts[-1]
+    from peghole_mjx.training.checkpoints import newest_policy_checkpoint
+
+    ckpt = newest_policy_checkpoint(path / "checkpoints")
+    if ckpt is not None:
+        return ckpt
     raise UserInputError(
         f"no policy at {path}: expected a directory with policy.json, a training run directory "
         f"(with final_policy/ or checkpoints/), or one of {sorted(PRETRAINED)}"
     )
 
 
+def check_meta(meta: Any, where: str) -> dict[str, Any]:
+    """Schema of ``policy.json``, checked before anything is allocated: format version, a
+    known env (the same one its training config names), and a network whose sizes are within
+    :data:`peghole_mjx.validation.RANGES`. Returns ``meta``; raises :class:`CorruptFileError`."""
+    from peghole_mjx.envs import ALL_ENVS
+    from peghole_mjx.validation import MAX_HIDDEN_LAYERS, RANGES
+
+    def need(cond: bool, what: str) -> None:
+        if not cond:
+            raise CorruptFileError(f"{where}: {what}")
+
+    need(isinstance(meta, dict), "not a JSON object")
+    need(
+        meta.get("format_version") == FORMAT_VERSION,
+        f"format_version {meta.get('format_version')!r}, this peghole_mjx reads {FORMAT_VERSION}",
+    )
+    env = meta.get("env")
+    need(env in ALL_ENVS, f"env {env!r} is not one of {list(ALL_ENVS)}")
+    trained_on = (meta.get("train_config") or {}).get("env", env)
+    need(
+        trained_on == env,
+        f"env {env!r}, but the policy was trained on {trained_on!r} (relabelled policy)",
+    )
+    need(isinstance(meta.get("env_overrides", {}), dict), "env_overrides is not an object")
+    net = meta.get("network")
+    need(isinstance(net, dict), "no network description ('network')")
+    for key in ("observation_size", "action_size"):
+        msg = RANGES[key].problem(net.get(key))
+        need(msg is None, f"network.{key} {msg}")
+    sizes = net.get("hidden_layer_sizes")
+    need(
+        isinstance(sizes, list)
+        and 1 <= len(sizes) <= MAX_HIDDEN_LAYERS
+        and all(RANGES["hidden_layer_size"].problem(w) is None for w in sizes),
+        f"network.hidden_layer_sizes must be 1 to {MAX_HIDDEN_LAYERS} widths in "
+        f"[1, {RANGES['hidden_layer_size'].hi:g}], got {sizes!r}",
+    )
+    need(
+        isinstance(net.get("normalize_observations"), bool),
+        "network.normalize_observations must be true or false",
+    )
+    return meta
+
+
 def load_policy(name: str | Path) -> PolicyBundle:
-    """Load a policy by pretrained name or path (see :func:`resolve_policy_path`)."""
+    """Load a policy by pretrained name or path (see :func:`resolve_policy_path`).
+
+    ``policy.json`` is schema-checked (:func:`check_meta`) before the network is built;
+    ``params.npz`` must hold exactly the network's arrays, as finite floats.
+    """
     path = resolve_policy_path(name)
-    meta = json.loads((path / "policy.json").read_text())
-    if meta.get("format_version") != FORMAT_VERSION:
-        raise UserInputError(
-            f"{path}/policy.json has format_version {meta.get('format_version')}, "
-            f"this peghole_mjx reads {FORMAT_VERSION}"
-        )
+    try:
+        meta = json.loads((path / "policy.json").read_text())
+    except (ValueError, UnicodeDecodeError) as exc:
+        raise CorruptFileError(f"{path}/policy.json is not valid JSON ({exc})") from None
+    check_meta(meta, f"{path}/policy.json")
     template = init_params(meta["network"])
     treedef = jax.tree.structure(template)
     tleaves = jax.tree.leaves(template)
-    with np.load(path / "params.npz") as z:
-        leaves = [z[f"leaf_{i:04d}"] for i in range(len(z.files))]
+    try:
+        with np.load(path / "params.npz", allow_pickle=False) as z:
+            names = [f"leaf_{i:04d}" for i in range(len(z.files))]
+            if sorted(z.files) != names:
+                raise CorruptFileError(f"{path}/params.npz holds unexpected arrays")
+            leaves = [z[n] for n in names]
+    except (zipfile.BadZipFile, EOFError, ValueError, OSError) as exc:
+        if isinstance(exc, (CorruptFileError, FileNotFoundError)):
+            raise
+        raise CorruptFileError(f"{path}/params.npz is unreadable ({exc})") from None
     if len(leaves) != len(tleaves) or any(
         a.shape != np.shape(b) for a, b in zip(leaves, tleaves, strict=True)
     ):
-        raise UserInputError(
+        raise CorruptFileError(
             f"{path}/params.npz does not match the network in policy.json "
             f"({len(leaves)} arrays vs {len(tleaves)} expected)"
         )
+    for i, x in enumerate(leaves):
+        if not np.issubdtype(x.dtype, np.floating) and not np.issubdtype(x.dtype, np.integer):
+            raise CorruptFileError(f"{path}/params.npz: array {i} has dtype {x.dtype}")
+        if np.issubdtype(x.dtype, np.floating) and not np.all(np.isfinite(x)):
+            raise CorruptFileError(f"{path}/params.npz: array {i} holds NaN or infinity")
     params = jax.tree.unflatten(treedef, [jnp.asarray(x) for x in leaves])
     return PolicyBundle(path=path, meta=meta, params=params)
 
@@ -180,6 +273,7 @@ def load_policy(name: str | Path) -> PolicyBundle:
 __all__ = [
     "PRETRAINED",
     "PolicyBundle",
+    "check_meta",
     "init_params",
     "load_policy",
     "make_networks",

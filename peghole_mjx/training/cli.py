@@ -3,12 +3,13 @@
 from __future__ import annotations
 
 import argparse
-import json
 import math
 import sys
 from pathlib import Path
 
+from peghole_mjx import fileio
 from peghole_mjx.errors import UserInputError
+from peghole_mjx.validation import arg
 
 
 def _override(text: str) -> tuple[str, object]:
@@ -53,7 +54,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     t.add_argument("--no-video", action="store_true", help="skip the final rollout GIF")
     t.add_argument(
         "--stop-at-success",
-        type=float,
+        type=arg("success_rate"),
         metavar="RATE",
         help="end the run at the first evaluation with at least this success rate "
         "(benchmarks/time_to_success.py uses 0.95)",
@@ -70,13 +71,13 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
         "pretrained name (rect, dual).",
     )
     e.add_argument("checkpoint")
-    e.add_argument("--episodes", type=int, default=256)
-    e.add_argument("--seed", type=int, default=0)
+    e.add_argument("--episodes", type=arg("episodes"), default=256)
+    e.add_argument("--seed", type=arg("seed"), default=0)
     e.add_argument("--json", action="store_true", help="print one JSON object")
     e.add_argument("--out", type=Path, help="also write the JSON object to this file")
     e.add_argument(
         "--batch",
-        type=int,
+        type=arg("batch"),
         metavar="N",
         help="run at most N episodes at once (default: all); the episodes are the same",
     )
@@ -100,6 +101,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
 
 def cmd_train(args: argparse.Namespace) -> int:
     from peghole_mjx.training.config import load_train_config
+    from peghole_mjx.training.lock import RunLock
     from peghole_mjx.training.run import TrainingRun
 
     progress = not args.no_progress
@@ -110,14 +112,20 @@ def cmd_train(args: argparse.Namespace) -> int:
                 "--resume takes the run's own config: drop --env and --set "
                 "(only --set num_timesteps=N, to extend or end a run, is allowed)"
             )
-        run = TrainingRun.resume(
-            args.resume,
-            progress=progress,
-            render=not args.no_video,
-            num_timesteps=over.get("num_timesteps"),
-        )
-        run.stop_at_success = args.stop_at_success
-        summary = run.run(resume=True)
+        if not (args.resume / "run.json").exists():
+            raise UserInputError(
+                f"--resume: {args.resume / 'run.json'} not found (not a training run directory)"
+            )
+        with RunLock(args.resume) as lock:  # before anything of the run is read or written
+            run = TrainingRun.resume(
+                args.resume,
+                progress=progress,
+                render=not args.no_video,
+                num_timesteps=over.get("num_timesteps"),
+            )
+            run.lock = lock
+            run.stop_at_success = args.stop_at_success
+            summary = run.run(resume=True)
     else:
         if not args.env or not args.out:
             raise UserInputError("--env and --out are required (or --resume DIR)")
@@ -127,31 +135,42 @@ def cmd_train(args: argparse.Namespace) -> int:
             overrides=dict(args.overrides),
             compliance_strategy=args.compliance_strategy == "on",
         )
-        run = TrainingRun(
-            cfg,
-            args.out,
-            progress=progress,
-            render=not args.no_video,
-            stop_at_success=args.stop_at_success,
-        )
-        summary = run.run(resume=False)
+        fileio.check_out_dir(args.out)
+        if (args.out / "run.json").exists():
+            raise UserInputError(
+                f"{args.out} already holds a training run: use --resume {args.out} or a new --out"
+            )
+        with RunLock(args.out) as lock:
+            run = TrainingRun(
+                cfg,
+                args.out,
+                progress=progress,
+                render=not args.no_video,
+                stop_at_success=args.stop_at_success,
+            )
+            run.lock = lock
+            summary = run.run(resume=False)
     fe = summary["final_eval"]
+    untrained = summary["untrained_eval_return"]
     print(
         f"{summary['env']}: {summary['env_steps']} env steps in {summary['wall_s']} s; "
-        f"eval success {fe.get('success_rate', float('nan')):.3f}, "
-        f"return {fe.get('mean_return', float('nan')):.2f} "
-        f"(untrained {summary['untrained_eval_return']:.2f}); outputs in {run.out}"
+        f"eval success {_num(fe.get('success_rate'), '.3f')}, "
+        f"return {_num(fe.get('mean_return'), '.2f')} "
+        f"(untrained {_num(untrained, '.2f')}); outputs in {run.out}"
     )
     return 0
 
 
+def _num(v, fmt: str) -> str:
+    return "n/a" if v is None or (isinstance(v, float) and math.isnan(v)) else format(v, fmt)
+
+
 def cmd_evaluate(args: argparse.Namespace) -> int:
     from peghole_mjx.training.evaluate import evaluate
+    from peghole_mjx.validation import dumps
 
-    if args.episodes < 1:
-        raise UserInputError("--episodes must be >= 1")
-    if args.batch is not None and args.batch < 1:
-        raise UserInputError("--batch must be >= 1")
+    if args.out:  # checked before the evaluation, written after the result is printed
+        fileio.check_out_file(args.out)
     res = evaluate(
         args.checkpoint,
         args.episodes,
@@ -160,13 +179,16 @@ def cmd_evaluate(args: argparse.Namespace) -> int:
         batch=args.batch,
         parts_dir=args.parts,
     )
-    text = json.dumps(res, indent=None if args.json else 2, allow_nan=True)
-    if args.out:
-        args.out.parent.mkdir(parents=True, exist_ok=True)
-        args.out.write_text(json.dumps(res, indent=2) + "\n")
     if args.json:
-        print(text)
-        return 0
+        print(dumps(res), flush=True)
+    else:
+        _print_evaluation(res)
+    if args.out:
+        fileio.write_text(args.out, dumps(res, indent=2) + "\n")
+    return 0
+
+
+def _print_evaluation(res: dict) -> None:
     p, b, th = res["policy"], res["baseline"], res["thesis"]
     print(f"{res['env']} ({res['preset']}), {res['episodes']} episodes, seed {res['seed']}")
     print(f"{'':22s}{'policy':>10s}{'baseline':>10s}{'thesis RL':>11s}")
@@ -182,8 +204,10 @@ def cmd_evaluate(args: argparse.Namespace) -> int:
         print(f"{name:22s}{fmt.format(p[key]):>10s}{fmt.format(b[key]):>10s}{t:>11s}")
     red = res["force_reduction_pct"]
     red_s = "nan" if math.isnan(red) else f"{red:.1f} %"
-    print(f"force reduction vs baseline: {red_s} (thesis R3: {th['force_reduction_pct']} %)")
-    return 0
+    print(
+        f"force reduction vs baseline: {red_s} (thesis R3: {th['force_reduction_pct']} %)",
+        flush=True,
+    )
 
 
 def cmd_compare(args: argparse.Namespace) -> int:
@@ -192,6 +216,7 @@ def cmd_compare(args: argparse.Namespace) -> int:
     for r in args.runs:
         if not (r / "metrics.csv").exists():
             raise UserInputError(f"{r}: no metrics.csv (not a training run directory)")
+    fileio.check_out_file(args.out)
     out = plot_curves(args.runs, args.out, title="RL vs RL + compliance strategy")
     print(out, file=sys.stdout)
     return 0

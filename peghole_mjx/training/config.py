@@ -33,7 +33,7 @@ stiffness.
 from __future__ import annotations
 
 import json
-from dataclasses import asdict, dataclass, field, fields
+from dataclasses import MISSING, asdict, dataclass, field, fields
 from pathlib import Path
 from typing import Any
 
@@ -80,20 +80,57 @@ class TrainConfig:
         unknown = sorted(set(d) - names)
         if unknown:
             raise UserInputError(f"unknown training config keys {unknown}; known: {sorted(names)}")
+        if not isinstance(d, dict):
+            raise UserInputError(f"training config must be a mapping, got {type(d).__name__}")
+        required = {
+            f.name for f in fields(cls) if f.default is MISSING and f.default_factory is MISSING
+        }
+        missing = sorted(required - set(d))
+        if missing:
+            raise UserInputError(f"training config lacks the keys {missing}")
         cfg = cls(**d)
         cfg.validate()
         return cfg
 
     def validate(self) -> None:
+        """Type, finiteness and range of every field (``peghole_mjx.validation.RANGES``), then
+        the relations between them. Whole-number floats (``1e6``) become integers."""
+        from peghole_mjx.validation import MAX_HIDDEN_LAYERS, RANGES, check
+
         def need(cond: bool, what: str) -> None:
             if not cond:
                 raise UserInputError(f"training config: {what}")
 
-        need(self.num_envs >= 1, f"num_envs must be >= 1, got {self.num_envs}")
-        need(self.batch_size >= 1, f"batch_size must be >= 1, got {self.batch_size}")
-        need(self.grad_updates_per_step >= 1, "grad_updates_per_step must be >= 1")
-        need(0.0 < self.discounting < 1.0, f"discounting must be in (0, 1), got {self.discounting}")
-        need(self.steps_per_call >= 1, "steps_per_call must be >= 1")
+        for f in fields(self):
+            if f.name in RANGES and f.name != "alpha":
+                setattr(self, f.name, check(f.name, getattr(self, f.name), _label(f.name)))
+        need(
+            self.alpha == "auto"
+            or (not isinstance(self.alpha, str) and RANGES["alpha"].problem(self.alpha) is None),
+            f"alpha must be 'auto' or a positive finite number, got {self.alpha!r}",
+        )
+        if self.alpha != "auto":
+            self.alpha = float(self.alpha)
+        sizes = self.hidden_layer_sizes
+        need(
+            isinstance(sizes, list | tuple) and 1 <= len(sizes) <= MAX_HIDDEN_LAYERS,
+            f"hidden_layer_sizes must be a list of 1 to {MAX_HIDDEN_LAYERS} layer widths, "
+            f"got {sizes!r}",
+        )
+        self.hidden_layer_sizes = [
+            check("hidden_layer_sizes", w, _label("hidden_layer_sizes"), kind="hidden_layer_size")
+            for w in sizes
+        ]
+        need(
+            isinstance(self.normalize_observations, bool),
+            f"normalize_observations must be true or false, got {self.normalize_observations!r}",
+        )
+        need(isinstance(self.env, str), f"env must be a name, got {self.env!r}")
+        need(self.profile in PROFILES, f"profile must be one of {list(PROFILES)}")
+        need(
+            isinstance(self.env_overrides, dict),
+            f"env_overrides must be a mapping, got {self.env_overrides!r}",
+        )
         chunk = self.num_envs * self.steps_per_call
         need(
             self.eval_every >= chunk,
@@ -101,16 +138,21 @@ class TrainConfig:
         )
         need(
             self.min_replay_size < self.num_timesteps,
-            "min_replay_size must be < num_timesteps (no training would happen)",
+            f"min_replay_size ({self.min_replay_size}) must be < num_timesteps "
+            f"({self.num_timesteps}): no training would happen",
         )
         need(
             self.max_replay_size >= self.min_replay_size,
             "max_replay_size must be >= min_replay_size",
         )
         need(
-            self.alpha == "auto" or (isinstance(self.alpha, int | float) and self.alpha > 0),
-            f"alpha must be 'auto' or a positive number, got {self.alpha!r}",
+            self.batch_size <= self.max_replay_size,
+            f"batch_size ({self.batch_size}) must be <= max_replay_size ({self.max_replay_size})",
         )
+
+
+def _label(name: str) -> str:
+    return f"training config: {name}"
 
 
 def load_train_config(

@@ -71,7 +71,9 @@ def _keyed_dir(root: Path, key: dict[str, Any]) -> Path:
             )
     else:
         root.mkdir(parents=True, exist_ok=True)
-        key_file.write_text(json.dumps(key, indent=2) + "\n")
+        from peghole_mjx import fileio
+
+        fileio.write_text(key_file, json.dumps(key, indent=2) + "\n")
     return root
 
 
@@ -134,7 +136,10 @@ def evaluate(
     baseline's slices (:func:`_parts_dirs`).
     """
     bundle = policy if isinstance(policy, PolicyBundle) else load_policy(policy)
-    env = env if env is not None else bundle.make_env(env_overrides)
+    if env is not None:
+        bundle.check_env(env)
+    else:
+        env = bundle.make_env(env_overrides)
     parts = _parts_dirs(parts_dir, bundle, env, seed, batch or episodes)
     kw = dict(seed=seed, progress=progress, batch=batch)
     res_p = rollout(

@@ -83,7 +83,11 @@ def plot_curves(runs: list[Path], out: Path, title: str | None = None) -> Path:
     axes[0, 0].legend(fontsize=7)
     fig.suptitle(title or "SAC learning curves")
     fig.tight_layout()
+    from peghole_mjx import fileio
+
+    out = Path(out)
     out.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(out, dpi=110)
+    with fileio.atomic_open(out, "wb") as fh:  # a failed write keeps the old figure
+        fig.savefig(fh, dpi=110, format=out.suffix.lstrip(".").lower() or "png")
     plt.close(fig)
     return out

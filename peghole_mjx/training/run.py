@@ -5,17 +5,22 @@ Layout of ``--out DIR``::
     run.json              env, hyperparameters, network, device, versions, start date
     metrics.csv           one row per evaluation (env steps, wall clock, eval and training stats)
     tb/                   TensorBoard event files (same scalars)
-    checkpoints/step_N/   policy.json + params.npz at every evaluation; the newest also
-                          holds state.npz + state.json (the whole carry, for --resume)
+    run.lock              held by the process writing the run (training/lock.py)
+    checkpoints/step_N/   policy.json + params.npz at every evaluation; the two newest also
+                          hold state.npz + state.json (the whole carry, for --resume);
+                          manifest.json: every file's size and SHA-256 (training/checkpoints.py)
     final_policy/         the policy at the end (what `peghole evaluate DIR` loads)
     curves.png            Figs 4.5-4.7 style learning curves
     rollout.gif           one episode of the final policy (mujoco.Renderer, headless)
     summary.json          final evaluation, wall clock, time to 95 % success
 
-Resume (``--resume DIR``) restores the newest complete checkpoint: actor, critics, target
-critics, temperature, optimiser states, normaliser, replay buffer, every world's state, the
-PRNG key, the env-step counter, the wall clock so far and the evaluation schedule. Rows of
-``metrics.csv`` written after that checkpoint are dropped (their work is redone).
+Resume (``--resume DIR``) restores the newest checkpoint whose state verifies (a corrupt
+newer one is set aside with a warning): actor, critics, target critics, temperature, optimiser
+states, normaliser, replay buffer, every world's state, the PRNG key, the env-step counter, the
+wall clock so far and the evaluation schedule. Rows of ``metrics.csv`` written after that
+checkpoint are dropped (their work is redone; none are kept when no checkpoint was written).
+Nothing of the run is rewritten before the new configuration and the checkpoint have been
+validated and loaded; every file is written atomically (``peghole_mjx.fileio``).
 """
 
 from __future__ import annotations
@@ -24,7 +29,6 @@ import csv
 import json
 import math
 import os
-import shutil
 import sys
 import time
 from pathlib import Path
@@ -33,10 +37,13 @@ from typing import Any
 import jax
 import numpy as np
 
-from peghole_mjx.errors import UserInputError
+from peghole_mjx import fileio
+from peghole_mjx.errors import CorruptFileError, UserInputError
 from peghole_mjx.policies import make_policy_fn, save_policy
 from peghole_mjx.provenance import provenance
+from peghole_mjx.training import checkpoints
 from peghole_mjx.training.config import TrainConfig
+from peghole_mjx.training.lock import RunLock
 from peghole_mjx.training.plots import read_metrics
 from peghole_mjx.training.sac import EPISODE_KEYS, SACTrainer
 
@@ -73,14 +80,6 @@ METRIC_COLUMNS = (
 SUCCESS_THRESHOLD = 0.95
 
 
-def _atomic_dir(final: Path) -> Path:
-    tmp = final.with_name(final.name + ".tmp")
-    if tmp.exists():
-        shutil.rmtree(tmp)
-    tmp.mkdir(parents=True)
-    return tmp
-
-
 class TrainingRun:
     """Drive a :class:`SACTrainer` with evaluation, logging and checkpoints."""
 
@@ -102,6 +101,10 @@ class TrainingRun:
         self.trainer = SACTrainer(self.env, cfg)
         self.policy_fn = make_policy_fn(self.trainer.network, deterministic=True)
         self.ckpt_dir = self.out / "checkpoints"
+        #: the run's lock when the caller took it (else :meth:`run` takes it)
+        self.lock: RunLock | None = None
+        #: run.json as it will be once the resumed config and checkpoint are validated
+        self._pending_meta: dict[str, Any] | None = None
 
     # ------------------------------------------------------------------ construction
     @classmethod
@@ -112,48 +115,67 @@ class TrainingRun:
         render: bool = True,
         num_timesteps: int | None = None,
     ) -> TrainingRun:
-        """The run in ``out`` with its own config; ``num_timesteps`` extends or ends it."""
+        """The run in ``out`` with its own config; ``num_timesteps`` extends or ends it.
+
+        Nothing is written here: the changed ``run.json`` is written by :meth:`run` once the
+        new configuration and the checkpoint have been validated.
+        """
+        from peghole_mjx.validation import check
+
         out = Path(out)
         path = out / "run.json"
         if not path.exists():
             raise UserInputError(f"--resume: {path} not found (not a training run directory)")
-        meta = json.loads(path.read_text())
+        try:
+            meta = json.loads(path.read_text())
+            config = dict(meta["config"])
+        except (ValueError, KeyError, TypeError) as exc:
+            raise CorruptFileError(f"{path} is not a readable run record ({exc})") from None
         if num_timesteps is not None:
-            meta["config"]["num_timesteps"] = int(num_timesteps)
-            meta.setdefault("resumed_with", []).append({"num_timesteps": int(num_timesteps)})
-            path.write_text(json.dumps(meta, indent=2) + "\n")
-        return cls(TrainConfig.from_dict(meta["config"]), out, progress, render)
+            n = check("num_timesteps", num_timesteps, "--set num_timesteps")
+            config["num_timesteps"] = n
+            meta = {**meta, "config": config}
+            meta["resumed_with"] = [*meta.get("resumed_with", []), {"num_timesteps": n}]
+        run = cls(TrainConfig.from_dict(config), out, progress, render)
+        if num_timesteps is not None:
+            run._pending_meta = meta
+        return run
 
     def latest_checkpoint(self) -> Path | None:
-        """Newest checkpoint with a complete saved state (atomic renames guarantee this)."""
-        if not self.ckpt_dir.is_dir():
-            return None
-        full = [p for p in sorted(self.ckpt_dir.glob("step_*")) if (p / "state.json").exists()]
+        """Newest checkpoint folder holding a saved state (not checked; see
+        :meth:`find_resume_point`)."""
+        full = [p for p in checkpoints.checkpoint_dirs(self.ckpt_dir) if checkpoints.has_state(p)]
         return full[-1] if full else None
+
+    def find_resume_point(self):
+        """``(path, carry, sched)`` of the newest checkpoint whose state verifies and loads,
+        or None; corrupt newer ones are set aside with a warning (``checkpoints.newest_valid``)."""
+        found = checkpoints.newest_valid(self.ckpt_dir, self.load_checkpoint)
+        if found is None:
+            return None
+        path, (carry, sched) = found
+        return path, carry, sched
 
     # ------------------------------------------------------------------ state I/O
     def save_checkpoint(self, carry, step: int, sched: dict[str, Any]) -> Path:
-        final = self.ckpt_dir / f"step_{step:010d}"
-        tmp = _atomic_dir(final)
-        save_policy(tmp, self.trainer.policy_params(carry), self._policy_meta(step))
-        leaves = jax.tree.leaves(jax.device_get(carry))
-        np.savez(tmp / "state.npz", **{f"leaf_{i:05d}": x for i, x in enumerate(leaves)})
-        (tmp / "state.json").write_text(json.dumps({"step": step, **sched}, indent=2) + "\n")
-        if final.exists():
-            shutil.rmtree(final)
-        os.replace(tmp, final)
-        # keep policies of every checkpoint, the (large) state of the newest only
-        for old in self.ckpt_dir.glob("step_*"):
-            if old != final and (old / "state.npz").exists():
-                (old / "state.npz").unlink()
-                (old / "state.json").unlink(missing_ok=True)
-        return final
+        """Write ``checkpoints/step_N`` completely (``checkpoints.write``: fsynced, sealed,
+        renamed); the two newest checkpoints keep their state."""
+        params = self.trainer.policy_params(carry)
+        arrays = {f"leaf_{i:05d}": x for i, x in enumerate(jax.tree.leaves(jax.device_get(carry)))}
+
+        def write_files(folder: Path) -> None:
+            save_policy(folder, params, self._policy_meta(step), atomic=False)
+            fileio.write_bytes_with(folder / "state.npz", lambda f: np.savez(f, **arrays))
+            text = json.dumps({"step": step, **sched}, indent=2) + "\n"
+            fileio.write_text(folder / "state.json", text)
+
+        return checkpoints.write(self.ckpt_dir, step, write_files)
 
     def load_checkpoint(self, path: Path):
         template = self.trainer.init_carry(self.cfg.seed)
         treedef = jax.tree.structure(template)
         tleaves = jax.tree.leaves(template)
-        with np.load(path / "state.npz") as z:
+        with np.load(path / "state.npz", allow_pickle=False) as z:
             leaves = [z[f"leaf_{i:05d}"] for i in range(len(z.files))]
         if len(leaves) != len(tleaves):
             raise UserInputError(
@@ -173,6 +195,10 @@ class TrainingRun:
         ]
         carry = jax.tree.unflatten(treedef, placed)
         sched = json.loads((path / "state.json").read_text())
+        if not isinstance(sched, dict) or not isinstance(sched.get("step"), int):
+            raise CorruptFileError(f"{path}/state.json holds no step")
+        if not {"wall_s", "n_eval"} <= set(sched):
+            raise CorruptFileError(f"{path}/state.json lacks the evaluation schedule")
         return carry, sched
 
     def _policy_meta(self, step: int) -> dict[str, Any]:
@@ -205,13 +231,15 @@ class TrainingRun:
     def _read_rows(self, upto_step: int | None = None) -> list[dict[str, str]]:
         if not (self.out / "metrics.csv").exists():
             return []
-        rows = read_metrics(self.out)
+        # a row cut short by a kill during its write has missing columns: dropped
+        rows = [r for r in read_metrics(self.out) if None not in r.values() and None not in r]
         if upto_step is not None:
             rows = [r for r in rows if int(r["step"]) <= upto_step]
         return rows
 
     def _write_rows(self, rows: list[dict[str, Any]]) -> None:
-        with (self.out / "metrics.csv").open("w", newline="") as f:
+        """Replace metrics.csv atomically with ``rows``."""
+        with fileio.atomic_open(self.out / "metrics.csv", "w") as f:
             w = csv.DictWriter(f, fieldnames=METRIC_COLUMNS)
             w.writeheader()
             for r in rows:
@@ -225,6 +253,8 @@ class TrainingRun:
             if new:
                 w.writeheader()
             w.writerow({k: _fmt(row.get(k, "")) for k in METRIC_COLUMNS})
+            f.flush()
+            os.fsync(f.fileno())
         if tb is not None:
             for k, v in row.items():
                 if k != "step" and isinstance(v, int | float) and math.isfinite(v):
@@ -233,24 +263,48 @@ class TrainingRun:
 
     # ------------------------------------------------------------------ main loop
     def run(self, resume: bool = False) -> dict[str, Any]:
-        cfg, trainer = self.cfg, self.trainer
+        """Train (``resume``: from the newest valid checkpoint) holding the run's lock."""
+        lock = self.lock
+        if lock is None or not lock.held:
+            lock = RunLock(self.out).acquire()
+        try:
+            return self._run(resume)
+        finally:
+            if lock is not self.lock:
+                lock.release()
+
+    def prepare(self, resume: bool):
+        """Check the run folder, find the checkpoint to resume from (None: from the start),
+        and only then rewrite the run's records: run.json (with a validated change) and
+        metrics.csv, truncated to the checkpoint's step (emptied when starting over)."""
         self.out.mkdir(parents=True, exist_ok=True)
-        ckpt = self.latest_checkpoint() if resume else None
-        if resume and ckpt is None:
-            print(f"no complete checkpoint in {self.ckpt_dir}: starting over", file=sys.stderr)
         if not resume and (self.out / "run.json").exists():
             raise UserInputError(
                 f"{self.out} already holds a training run: use --resume {self.out} or a new --out"
             )
+        found = self.find_resume_point() if resume else None
+        if resume and found is None:
+            print(f"no complete checkpoint in {self.ckpt_dir}: starting over", file=sys.stderr)
+        # validated: from here on the run's records are rewritten
+        if self._pending_meta is not None:
+            fileio.write_text(
+                self.out / "run.json", json.dumps(self._pending_meta, indent=2) + "\n"
+            )
+            self._pending_meta = None
         if not (self.out / "run.json").exists():
-            meta = {"config": cfg.as_dict(), "network": trainer.network, **provenance()}
-            (self.out / "run.json").write_text(json.dumps(meta, indent=2) + "\n")
+            meta = {"config": self.cfg.as_dict(), "network": self.trainer.network, **provenance()}
+            fileio.write_text(self.out / "run.json", json.dumps(meta, indent=2) + "\n")
+        if resume:  # rows after the checkpoint (all rows when starting over) are redone
+            self._write_rows(self._read_rows(upto_step=found[2]["step"]) if found else [])
+        return found
 
+    def _run(self, resume: bool) -> dict[str, Any]:
+        cfg, trainer = self.cfg, self.trainer
+        found = self.prepare(resume)
         tb = _tensorboard(self.out / "tb")
         t_start = time.perf_counter()
-        if ckpt is not None:
-            carry, sched = self.load_checkpoint(ckpt)
-            self._write_rows(self._read_rows(upto_step=sched["step"]))
+        if found is not None:
+            ckpt, carry, sched = found
             step, wall0, n_eval = sched["step"], sched["wall_s"], sched["n_eval"]
             eval_s = sched.get("eval_s", 0.0)
             print(f"resumed from {ckpt} at {step} env steps", file=sys.stderr)
@@ -350,7 +404,7 @@ class TrainingRun:
     def finish(self, carry, step: int, wall_s: float) -> dict[str, Any]:
         save_policy(
             self.out / "final_policy", self.trainer.policy_params(carry), self._policy_meta(step)
-        )
+        )  # both files or neither (a temporary folder renamed)
         rows = self._read_rows()
         first95 = next(
             (r for r in rows if _f(r["eval/success_rate"]) >= SUCCESS_THRESHOLD),
@@ -373,7 +427,7 @@ class TrainingRun:
             "final_eval": {k[5:]: _f(v) for k, v in last.items() if k.startswith("eval/")},
             **provenance(),
         }
-        (self.out / "summary.json").write_text(json.dumps(summary, indent=2) + "\n")
+        fileio.write_text(self.out / "summary.json", json.dumps(summary, indent=2) + "\n")
         try:
             from peghole_mjx.training.plots import plot_curves
 

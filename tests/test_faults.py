@@ -1,0 +1,713 @@
+"""Fault injection and bad input: every case ends in one clear line (exit 2) or is handled,
+and nothing that existed before is lost or left half-written (docs/reliability.md).
+
+Cheap by design: the CLI runs in-process, faults are injected by patching writes (a full disk
+is ``os.fsync`` raising ENOSPC), kills are simulated by the folders a kill leaves behind, and
+checkpoints are written with small stand-in files. The cases that need a real training run
+(a corrupted newest checkpoint, a concurrent resume of a running training) are in
+``test_training.py``, which shares its compiled run.
+"""
+
+from __future__ import annotations
+
+import errno
+import json
+import os
+import shutil
+import socket
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+
+from peghole_mjx import cli, fileio
+from peghole_mjx.errors import CorruptFileError, UserInputError
+from peghole_mjx.training import checkpoints
+from peghole_mjx.training.config import TrainConfig, load_train_config
+from peghole_mjx.training.lock import RunLock, _proc_start
+from peghole_mjx.validation import RANGES, dumps, json_safe
+from peghole_mjx.validation import loads as strict_json  # no bare NaN
+
+TINY = {
+    "num_envs": 8,
+    "steps_per_call": 10,
+    "eval_every": 400,
+    "num_eval_envs": 8,
+    "batch_size": 128,
+    "grad_updates_per_step": 8,
+    "min_replay_size": 80,
+    "max_replay_size": 20000,
+    "env.episode_length": 25,
+}
+
+
+# ---------------------------------------------------------------------- helpers
+def peghole(argv, capsys) -> tuple[int, str, str]:
+    """Run the CLI in-process: (exit status, stdout, stderr)."""
+    try:
+        rc = cli.main([str(a) for a in argv])
+    except SystemExit as exc:  # argparse
+        rc = exc.code
+    out, err = capsys.readouterr()
+    return rc, out, err
+
+
+def assert_one_line(err: str, *needles: str) -> None:
+    """stderr ends in exactly one ``error:`` line holding every needle; no traceback."""
+    assert "Traceback" not in err, err
+    errors = [line for line in err.splitlines() if "error:" in line]
+    assert len(errors) == 1, err
+    assert err.strip().splitlines()[-1] == errors[0]
+    for n in needles:
+        assert n in errors[0], errors[0]
+
+
+def snapshot(folder) -> dict[str, bytes]:
+    return {
+        str(p.relative_to(folder)): p.read_bytes() for p in sorted(folder.rglob("*")) if p.is_file()
+    }
+
+
+def full_disk(monkeypatch):
+    """Every fsync fails as on a full disk (the data never reaches it)."""
+
+    def enospc(fd):
+        raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC))
+
+    monkeypatch.setattr(fileio.os, "fsync", enospc)
+
+
+def fake_checkpoint(ckpt_dir, step: int, fill: float = 1.0):
+    """A checkpoint of small stand-in files, written like a real one."""
+
+    def write_files(folder):
+        fileio.write_text(folder / "policy.json", json.dumps({"step": step}))
+        fileio.write_bytes_with(folder / "params.npz", lambda f: np.savez(f, a=np.ones(3)))
+        arrays = {"leaf_00000": np.full(1000, fill), "leaf_00001": np.arange(5)}
+        fileio.write_bytes_with(folder / "state.npz", lambda f: np.savez(f, **arrays))
+        sched = {"step": step, "wall_s": 1.0, "n_eval": step // 400 + 1}
+        fileio.write_text(folder / "state.json", json.dumps(sched))
+
+    return checkpoints.write(ckpt_dir, step, write_files)
+
+
+def load_stand_in(path):
+    with np.load(path / "state.npz", allow_pickle=False) as z:
+        arrays = {k: z[k] for k in z.files}
+    return arrays, json.loads((path / "state.json").read_text())
+
+
+def run_folder(tmp_path, steps=(0, 400, 800)):
+    """A run folder: run.json of the tiny config, metrics.csv with rows at ``steps``."""
+    from peghole_mjx.training.run import METRIC_COLUMNS
+
+    out = tmp_path / "run"
+    out.mkdir()
+    cfg = load_train_config("RectExtract", "quick", TINY, compliance_strategy=True)
+    (out / "run.json").write_text(json.dumps({"config": cfg.as_dict()}, indent=2) + "\n")
+    rows = [",".join(METRIC_COLUMNS)]
+    rows += [",".join([str(s)] + ["1"] * (len(METRIC_COLUMNS) - 1)) for s in steps]
+    (out / "metrics.csv").write_text("\n".join(rows) + "\n")
+    return out, cfg
+
+
+def bare_run(out, cfg):
+    """A TrainingRun without env or learner (enough for its file logic)."""
+    from peghole_mjx.training.run import TrainingRun
+
+    run = TrainingRun.__new__(TrainingRun)
+    run.cfg, run.out, run.ckpt_dir = cfg, out, out / "checkpoints"
+    run.lock, run._pending_meta = None, None
+    return run
+
+
+def steps_in(out) -> list[int]:
+    return [int(line.split(",")[0]) for line in (out / "metrics.csv").read_text().splitlines()[1:]]
+
+
+# ---------------------------------------------------------------------- 1. run lock
+def test_resume_of_a_run_in_use_is_refused_naming_the_holder(tmp_path, capsys):
+    out, _ = run_folder(tmp_path)
+    holder = subprocess.Popen([sys.executable, "-c", "import time; time.sleep(60)"])
+    try:
+        rec = {"pid": holder.pid, "host": socket.gethostname(), "start": _proc_start(holder.pid)}
+        (out / "run.lock").write_text(json.dumps(rec))
+        before = snapshot(out)
+        rc, _, err = peghole(["train", "--resume", out], capsys)
+        assert rc == 2
+        assert_one_line(err, f"pid {holder.pid}", "in use")
+        assert snapshot(out) == before
+        # a fresh training into the same folder is refused as well
+        rc, _, err = peghole(["train", "--env", "RectExtract", "--quick", "--out", out], capsys)
+        assert rc == 2 and snapshot(out) == before
+    finally:
+        holder.kill()
+        holder.wait()
+
+
+def test_stale_garbled_and_foreign_locks(tmp_path, capsys):
+    gone = subprocess.Popen([sys.executable, "-c", "pass"])
+    gone.wait()
+    lock = RunLock(tmp_path)
+    (tmp_path / "run.lock").write_text(json.dumps({"pid": gone.pid, "host": socket.gethostname()}))
+    with lock:  # the process is gone: taken over with a warning
+        assert json.loads((tmp_path / "run.lock").read_text())["pid"] == os.getpid()
+        with pytest.raises(UserInputError, match="already locked by this process"):
+            RunLock(tmp_path).acquire()
+    assert "stale lock" in capsys.readouterr().err
+    assert not (tmp_path / "run.lock").exists()  # released
+    (tmp_path / "run.lock").write_text("{garbled")
+    with RunLock(tmp_path):
+        pass
+    (tmp_path / "run.lock").write_text(json.dumps({"pid": 1, "host": "elsewhere"}))
+    with pytest.raises(UserInputError, match="pid 1 on elsewhere"):
+        RunLock(tmp_path).acquire()
+
+
+# ---------------------------------------------------------------------- 2, 11. checkpoints
+def test_checkpoints_keep_two_states_and_temporary_folders_never_count(tmp_path):
+    ckpt = tmp_path / "checkpoints"
+    for step in (400, 800, 1200):
+        fake_checkpoint(ckpt, step)
+    names = [p.name for p in checkpoints.checkpoint_dirs(ckpt)]
+    assert names == ["step_0000000400", "step_0000000800", "step_0000001200"]
+    assert [checkpoints.has_state(ckpt / n) for n in names] == [False, True, True]
+    for n in names:
+        checkpoints.verify(ckpt / n)  # policies kept and intact
+    # what kills leave behind: an unfinished folder, a folder being replaced, a set-aside one
+    for junk in ("step_0000001600.tmp", "step_0000002000.old", "step_0000002400.corrupt"):
+        shutil.copytree(ckpt / names[-1], ckpt / junk)
+    assert [p.name for p in checkpoints.checkpoint_dirs(ckpt)] == names
+    path, _ = checkpoints.newest_valid(ckpt, load_stand_in)
+    assert path.name == names[-1]
+    # `peghole evaluate RUN` (no final_policy yet) takes the newest real checkpoint
+    from peghole_mjx.policies import resolve_policy_path
+
+    (ckpt / "step_0000001600.tmp" / "policy.json").write_text("{}")
+    assert resolve_policy_path(tmp_path).name == names[-1]
+
+
+def test_kill_during_a_checkpoint_write_keeps_the_earlier_ones(tmp_path):
+    ckpt = tmp_path / "checkpoints"
+    fake_checkpoint(ckpt, 400)
+    fake_checkpoint(ckpt, 800)
+    before = snapshot(ckpt)
+
+    def killed_midway(folder):
+        (folder / "policy.json").write_text("{")
+        raise KeyboardInterrupt  # stands in for the kill: the rest is never written
+
+    with pytest.raises(KeyboardInterrupt):
+        checkpoints.write(ckpt, 1200, killed_midway)
+    assert (ckpt / "step_0000001200.tmp").exists()
+    assert checkpoints.newest_valid(ckpt, load_stand_in)[0].name == "step_0000000800"
+    assert {k: v for k, v in snapshot(ckpt).items() if ".tmp" not in k} == before
+    fake_checkpoint(ckpt, 1200)  # the next write of that step starts afresh
+    assert not (ckpt / "step_0000001200.tmp").exists()
+    checkpoints.verify(ckpt / "step_0000001200", checkpoints.STATE_FILES)
+
+
+def test_full_disk_during_a_checkpoint_write_keeps_the_earlier_ones(tmp_path, monkeypatch):
+    ckpt = tmp_path / "checkpoints"
+    fake_checkpoint(ckpt, 400)
+    fake_checkpoint(ckpt, 800)
+    before = snapshot(ckpt)
+    full_disk(monkeypatch)
+    with pytest.raises(OSError, match="No space left"):
+        fake_checkpoint(ckpt, 1200)
+    monkeypatch.undo()
+    assert [p.name for p in checkpoints.checkpoint_dirs(ckpt)][-1] == "step_0000000800"
+    assert {k: v for k, v in snapshot(ckpt).items() if ".tmp" not in k} == before
+    assert checkpoints.newest_valid(ckpt, load_stand_in)[0].name == "step_0000000800"
+
+
+@pytest.mark.parametrize("damage", ["flipped_byte", "truncated", "garbled_json", "no_manifest"])
+def test_corrupt_newest_checkpoint_falls_back_to_the_previous_one(tmp_path, capsys, damage):
+    ckpt = tmp_path / "checkpoints"
+    fake_checkpoint(ckpt, 400, fill=4.0)
+    newest = fake_checkpoint(ckpt, 800, fill=8.0)
+    state = newest / "state.npz"
+    data = bytearray(state.read_bytes())
+    if damage == "flipped_byte":
+        data[len(data) // 2] ^= 0xFF
+        state.write_bytes(bytes(data))
+    elif damage == "truncated":
+        state.write_bytes(bytes(data[: len(data) // 2]))
+    elif damage == "garbled_json":
+        (newest / "state.json").write_text('{"step": 8')
+    else:  # a checkpoint of an older version (no manifest) truncated: np.load finds it out
+        (newest / checkpoints.MANIFEST).unlink()
+        state.write_bytes(bytes(data[: len(data) // 2]))
+    path, (arrays, sched) = checkpoints.newest_valid(ckpt, load_stand_in)
+    assert path.name == "step_0000000400" and sched["step"] == 400
+    assert arrays["leaf_00000"][0] == 4.0
+    assert (ckpt / "step_0000000800.corrupt").is_dir()  # kept for inspection, out of the way
+    err = capsys.readouterr().err
+    assert "step_0000000800 is corrupt" in err and "falling back" in err
+
+
+def test_a_checkpoint_of_another_config_is_refused_not_set_aside(tmp_path):
+    ckpt = tmp_path / "checkpoints"
+    fake_checkpoint(ckpt, 400)
+
+    def mismatch(path):
+        raise UserInputError(f"{path}: saved state does not match this run's config")
+
+    with pytest.raises(UserInputError, match="does not match"):
+        checkpoints.newest_valid(ckpt, mismatch)
+    assert (ckpt / "step_0000000400").is_dir()
+
+
+# ---------------------------------------------------------------------- 2, 3, 4. resume records
+def test_resume_rewrites_nothing_before_the_config_is_valid(tmp_path, capsys):
+    out, _ = run_folder(tmp_path)
+    before = snapshot(out)
+    for value, needle in (
+        ("50", "min_replay_size (80) must be < num_timesteps (50)"),
+        ("99.9", "must be an integer"),
+        ("abc", "must be an integer"),
+        ("NaN", "must be an integer"),
+    ):
+        rc, _, err = peghole(["train", "--resume", out, "--set", f"num_timesteps={value}"], capsys)
+        assert rc == 2
+        assert_one_line(err, needle)
+        assert snapshot(out) == before  # run.json untouched: a plain --resume still works
+    assert not (out / "run.lock").exists()
+
+
+def test_resume_rewrites_nothing_when_the_checkpoint_does_not_fit(tmp_path):
+    out, cfg = run_folder(tmp_path)
+    fake_checkpoint(out / "checkpoints", 400)
+    before = snapshot(out)
+    run = bare_run(out, cfg)
+    run._pending_meta = {"config": {**cfg.as_dict(), "num_timesteps": 8000}}
+
+    def mismatch(path):
+        raise UserInputError(f"{path}: saved state does not match this run's config")
+
+    run.load_checkpoint = mismatch
+    with pytest.raises(UserInputError, match="does not match"):
+        run.prepare(resume=True)
+    assert snapshot(out) == before
+
+
+def test_resume_truncates_metrics_to_the_checkpoint(tmp_path):
+    out, cfg = run_folder(tmp_path, steps=(0, 400, 800, 1200))
+    with (out / "metrics.csv").open("a") as f:
+        f.write("1600,3.2,1")  # a row cut short by the kill
+    fake_checkpoint(out / "checkpoints", 400)
+    fake_checkpoint(out / "checkpoints", 800)
+    run = bare_run(out, cfg)
+    run._pending_meta = {"config": {**cfg.as_dict(), "num_timesteps": 8000}, "resumed_with": []}
+    run.load_checkpoint = load_stand_in
+    path, _, sched = run.prepare(resume=True)
+    assert (
+        path.name == "step_0000000800" and sched["step"] == 800 and steps_in(out) == [0, 400, 800]
+    )
+    assert json.loads((out / "run.json").read_text())["config"]["num_timesteps"] == 8000
+
+
+def test_resume_before_the_first_checkpoint_starts_over_without_duplicate_rows(tmp_path, capsys):
+    out, cfg = run_folder(tmp_path, steps=(0,))  # killed after the untrained evaluation
+    run = bare_run(out, cfg)
+    assert run.prepare(resume=True) is None
+    assert steps_in(out) == []  # the step-0 row is redone, not duplicated
+    assert "starting over" in capsys.readouterr().err
+
+
+# ---------------------------------------------------------------------- 5, 6. decompose inputs
+@pytest.mark.parametrize(
+    "option, value, needle",
+    [
+        ("--threshold", "1.5", "[0.01, 1]"),
+        ("--threshold", "0", "[0.01, 1]"),
+        ("--threshold", "-1", "[0.01, 1]"),
+        ("--threshold", "nan", "got nan"),
+        ("--resolution", "0", "[100, 100000]"),
+        ("--max-ch-vertex", "0", "at least 4 vertices"),
+        ("--max-convex-hull", "0", "-1 (no cap)"),
+        ("--friction", "nan", "[0, 2]"),
+        ("--friction", "99", "[0, 2]"),
+        ("--peg-mass", "nan", "(0, 100]"),
+        ("--peg-mass", "0", "(0, 100]"),
+        ("--clearance-mm", "nan", "got nan"),
+        ("--clearance-mm", "inf", "got inf"),
+        ("--seed", str(2**70), "[0, 4294967295]"),
+    ],
+)
+def test_decompose_refuses_bad_numbers_before_any_work(tmp_path, capsys, option, value, needle):
+    mesh = tmp_path / "part.stl"
+    mesh.write_bytes(b"")
+    rc, _, err = peghole(
+        ["models", "decompose", mesh, mesh, "--out", tmp_path / "o", option, value], capsys
+    )
+    assert rc == 2
+    assert_one_line(err, option, needle)
+    assert not (tmp_path / "o").exists()
+
+
+def test_coacd_params_and_decompose_parts_check_their_ranges(tmp_path):
+    from peghole_mjx.geometry.decompose import CoacdParams, decompose_parts
+
+    for bad in ({"threshold": 1.5}, {"resolution": 0}, {"max_ch_vertex": 0}, {"seed": -1}):
+        with pytest.raises(UserInputError):
+            CoacdParams(**bad)
+    for kw in ({"friction": float("nan")}, {"peg_mass_kg": float("nan")}, {"clearance_mm": 0}):
+        with pytest.raises(UserInputError):
+            decompose_parts("a.stl", "b.stl", tmp_path, **kw)
+
+
+def test_unreadable_meshes_give_one_line(tmp_path, capsys):
+    rng = np.random.default_rng(0)
+    for suffix in ("stl", "obj", "ply"):
+        junk = tmp_path / f"junk.{suffix}"
+        junk.write_bytes(rng.bytes(3000))
+        rc, _, err = peghole(["models", "decompose", junk, junk, "--out", tmp_path / "o"], capsys)
+        assert rc == 2
+        assert_one_line(err, str(junk))
+        assert "charset_normalizer" not in err
+
+
+# ---------------------------------------------------------------------- 6, 10. env config, JSON
+@pytest.mark.parametrize(
+    "override, needle",
+    [
+        ("randomization.lateral_error_mm=NaN", "must be a finite number"),
+        ("randomization.hole_xy_mm=Infinity", "must be a finite number"),
+        ("randomization.friction_scale=[0.8, 9]", "outside [0, 2]"),
+        ("episode_length=abc", "episode_length"),
+        ("randomization.hole_yaw_deg=-1", ">= 0"),
+    ],
+)
+def test_env_overrides_are_checked_before_any_work(capsys, override, needle):
+    rc, _, err = peghole(["envs", "rollout", "--env", "RectExtract", "--set", override], capsys)
+    assert rc == 2
+    assert_one_line(err, needle)
+
+
+@pytest.mark.parametrize(
+    "key, value",
+    [
+        ("learning_rate", float("nan")),
+        ("learning_rate", -1e-3),
+        ("tau", float("nan")),
+        ("num_eval_envs", 0),
+        ("num_envs", 2.5),
+        ("hidden_layer_sizes", [0]),
+        ("hidden_layer_sizes", []),
+        ("reward_scaling", float("inf")),
+        ("batch_size", 1e9),
+        ("alpha", float("nan")),
+        ("num_timesteps", "abc"),
+        ("num_timesteps", 99.9),
+        ("seed", 2**70),
+        ("discounting", 1.0),
+        ("normalize_observations", "yes"),
+    ],
+)
+def test_training_config_rejects_nonsense(key, value):
+    with pytest.raises(UserInputError, match=key if key != "hidden_layer_sizes" else "hidden"):
+        load_train_config("RectExtract", "quick", {key: value})
+
+
+def test_training_config_from_a_damaged_run_json():
+    good = load_train_config("RectExtract", "quick").as_dict()
+    with pytest.raises(UserInputError, match="lacks the keys"):
+        TrainConfig.from_dict({k: v for k, v in good.items() if k != "tau"})
+    assert TrainConfig.from_dict({**good, "num_timesteps": 1e6}).num_timesteps == 1_000_000
+
+
+def test_train_cli_bad_values_are_one_line(tmp_path, capsys):
+    out = tmp_path / "run"
+    for sets, needle in (
+        (["num_timesteps=abc"], "num_timesteps"),
+        (["learning_rate=NaN"], "learning_rate"),
+        (["env.randomization.lateral_error_mm=NaN"], "lateral_error_mm"),
+    ):
+        argv = ["train", "--env", "RectExtract", "--quick", "--out", out]
+        rc, _, err = peghole([*argv, *(f"--set={s}" for s in sets)], capsys)
+        assert rc == 2
+        assert_one_line(err, needle)
+    assert not (out / "run.json").exists()
+
+
+def test_json_output_never_holds_bare_nan():
+    data = {"a": float("nan"), "b": [1.0, float("inf")], "c": np.float32("nan"), "d": np.ones(2)}
+    assert json_safe(data) == {"a": None, "b": [1.0, None], "c": None, "d": [1.0, 1.0]}
+    assert strict_json(dumps(data)) == json_safe(data)
+    with pytest.raises(ValueError, match="bare NaN"):
+        strict_json('{"a": NaN}')
+
+
+# ---------------------------------------------------------------------- 7. evaluate --out
+FAKE_RESULT = {
+    "policy": {"success_rate": 0.0, "mean_time_s": float("nan"), "mean_fz_N": 1.0},
+    "baseline": {"success_rate": 1.0, "mean_time_s": 2.0, "mean_fz_N": 0.0},
+    "force_reduction_pct": float("nan"),
+}
+
+
+@pytest.fixture
+def fake_evaluate(monkeypatch):
+    import importlib
+
+    module = importlib.import_module("peghole_mjx.training.evaluate")
+    calls = []
+    monkeypatch.setattr(module, "evaluate", lambda *a, **k: calls.append(a) or FAKE_RESULT)
+    return calls
+
+
+def test_evaluate_out_is_checked_before_the_evaluation(tmp_path, capsys, fake_evaluate):
+    existing_dir = tmp_path / "d"
+    existing_dir.mkdir()
+    blocker = tmp_path / "file"
+    blocker.write_text("keep")
+    for out, needle in ((existing_dir, "is a folder"), (blocker / "x.json", "existing file")):
+        rc, _, err = peghole(["evaluate", "rect", "--json", "--out", out], capsys)
+        assert rc == 2
+        assert_one_line(err, needle)
+    assert fake_evaluate == [] and blocker.read_text() == "keep"
+
+
+def test_evaluate_prints_the_result_before_a_failed_write(
+    tmp_path, capsys, fake_evaluate, monkeypatch
+):
+    out = tmp_path / "ev.json"
+    out.write_text("old")
+    with monkeypatch.context() as m:
+        full_disk(m)
+        rc, stdout, err = peghole(["evaluate", "rect", "--json", "--out", out], capsys)
+    assert rc == 2
+    assert_one_line(err, "No space left on device")
+    assert strict_json(stdout)["force_reduction_pct"] is None  # printed, valid JSON
+    assert out.read_text() == "old" and sorted(p.name for p in tmp_path.iterdir()) == ["ev.json"]
+    rc, _, _ = peghole(["evaluate", "rect", "--json", "--out", out], capsys)
+    assert rc == 0 and strict_json(out.read_text())["policy"]["mean_time_s"] is None
+    assert len(fake_evaluate) == 2
+
+
+# ---------------------------------------------------------------------- 8. models build
+def test_models_build_writes_both_files_or_neither(tmp_path, capsys, monkeypatch):
+    out = tmp_path / "scene"
+    rc, _, _ = peghole(["models", "build", "--preset", "rect-1", "--out", out], capsys)
+    assert rc == 0
+    before = snapshot(out)
+    argv = ["models", "build", "--preset", "rect-2", "--out", out]
+    full_disk(monkeypatch)
+    rc, _, err = peghole(argv, capsys)
+    assert rc == 2
+    assert_one_line(err, "No space left on device")
+    assert snapshot(out) == before  # no scene.xml of rect-2 beside a free_peg.xml of rect-1
+    monkeypatch.undo()
+
+    def read_only(*a, **k):
+        raise OSError(errno.EROFS, os.strerror(errno.EROFS), str(a[0]))
+
+    monkeypatch.setattr(fileio, "open", read_only, raising=False)
+    rc, _, err = peghole(argv, capsys)
+    assert rc == 2
+    assert_one_line(err, "Read-only file system")
+    assert snapshot(out) == before
+
+
+@pytest.mark.parametrize(
+    "argv, needle",
+    [
+        (["--geometry", "rect", "--hole", "1200.1x40.1", "--peg", "1200x40", "--length", "50"],
+         "robot's reach"),
+        (["--geometry", "rect", "--hole", "60.1x40.1", "--peg", "59.8x39.8", "--length", "1000"],
+         "robot's reach"),
+        (["--geometry", "dual", "--hole-radius", "6.1", "--peg-radius", "5.9", "--distance",
+          "5000", "--length", "50"], "robot's reach"),
+        (["--preset", "rect-1", "--friction", "nan"], "[0, 2]"),
+        (["--geometry", "rect", "--hole", "nanx40", "--peg", "59.8x39.8", "--length", "50"],
+         "got nan"),
+    ],
+)  # fmt: skip
+def test_models_build_refuses_bad_geometry_in_one_line(tmp_path, capsys, argv, needle):
+    rc, _, err = peghole(["models", "build", *argv, "--out", tmp_path / "o"], capsys)
+    assert rc == 2
+    assert_one_line(err, needle)
+    assert not (tmp_path / "o").exists()
+
+
+def test_unreachable_inserted_pose_is_one_line(tmp_path, capsys, monkeypatch):
+    from peghole_mjx.geometry import mjcf
+
+    def no_ik(*a, **k):
+        raise RuntimeError("IK did not converge: residual 8.01e-01")
+
+    monkeypatch.setattr(mjcf, "build_scene", no_ik)
+    rc, _, err = peghole(["models", "build", "--preset", "rect-1", "--out", tmp_path], capsys)
+    assert rc == 2
+    assert_one_line(err, "cannot reach")
+
+
+def test_a_spec_beyond_the_robots_reach_names_the_limit():
+    from peghole_mjx.geometry.specs import InfeasibleGeometryError, dual_spec
+
+    with pytest.raises(InfeasibleGeometryError, match="700.*robot's reach"):
+        dual_spec(6.1, 5.9, 5000.0, 50.0)
+    assert RANGES["size_mm"].hi == 700
+
+
+# ---------------------------------------------------------------------- 9. --out paths
+@pytest.mark.parametrize(
+    "argv",
+    [
+        ["models", "build", "--preset", "rect-1", "--out", "{file}"],
+        ["analyze", "figure", "2.11", "--out", "{file}"],
+        ["train", "--env", "RectExtract", "--quick", "--out", "{file}"],
+        ["models", "decompose", "{file}", "{file}", "--out", "{file}"],
+        ["evaluate", "rect", "--out", "{dir}"],
+        ["models", "check", "--preset", "rect-1", "--out", "{dir}"],
+        ["compare", "{dir}", "--out", "{dir}"],
+    ],
+)
+def test_out_pointing_at_the_wrong_kind_of_path_is_one_line(tmp_path, capsys, argv):
+    blocker = tmp_path / "file"
+    blocker.write_text("keep")
+    (tmp_path / "dir").mkdir()
+    (tmp_path / "dir" / "metrics.csv").write_text("step\n")
+    argv = [a.format(file=blocker, dir=tmp_path / "dir") for a in argv]
+    rc, _, err = peghole(argv, capsys)
+    assert rc == 2
+    assert_one_line(err)
+    assert blocker.read_text() == "keep"
+
+
+# ---------------------------------------------------------------------- 9, 12. policies
+@pytest.fixture
+def policy_copy(tmp_path):
+    from peghole_mjx.policies import PRETRAINED
+
+    dest = tmp_path / "policy"
+    dest.mkdir()
+    for name in ("policy.json", "params.npz"):
+        shutil.copy(PRETRAINED["rect"] / name, dest / name)
+    return dest
+
+
+def _edit_meta(path, edit):
+    meta = json.loads((path / "policy.json").read_text())
+    edit(meta)
+    (path / "policy.json").write_text(json.dumps(meta))
+
+
+@pytest.mark.parametrize(
+    "damage, needle",
+    [
+        ("truncated_params", "params.npz"),
+        ("garbled_params", "params.npz"),
+        ("pickled_params", "params.npz"),
+        ("nan_params", "NaN"),
+        ("garbled_json", "not valid JSON"),
+        ("missing_network", "network"),
+        ("relabelled", "trained on 'RectExtract'"),
+        ("huge_network", "hidden_layer_sizes"),
+        ("huge_observation", "observation_size"),
+        ("other_version", "format_version"),
+    ],
+)
+def test_damaged_or_foreign_policy_is_refused_before_anything_is_allocated(
+    policy_copy, capsys, damage, needle
+):
+    params, meta = policy_copy / "params.npz", policy_copy / "policy.json"
+    data = params.read_bytes()
+    if damage == "truncated_params":
+        params.write_bytes(data[: len(data) // 2])
+    elif damage == "garbled_params":
+        params.write_bytes(np.random.default_rng(0).bytes(len(data)))
+    elif damage == "pickled_params":
+        np.savez(params, leaf_0000=np.array([{"x": 1}], dtype=object))
+    elif damage == "nan_params":
+        with np.load(params) as z:
+            arrays = {k: z[k] for k in z.files}
+        arrays["leaf_0008"] = np.full_like(arrays["leaf_0008"], np.nan)
+        np.savez(params, **arrays)
+    elif damage == "garbled_json":
+        meta.write_text('{"format_version": 1, "env": ')
+    elif damage == "missing_network":
+        _edit_meta(policy_copy, lambda m: m.pop("network"))
+    elif damage == "relabelled":
+        _edit_meta(policy_copy, lambda m: m.update(env="DualExtract"))
+    elif damage == "huge_network":
+        _edit_meta(policy_copy, lambda m: m["network"].update(hidden_layer_sizes=[10**9]))
+    elif damage == "huge_observation":
+        _edit_meta(policy_copy, lambda m: m["network"].update(observation_size=10**12))
+    else:
+        _edit_meta(policy_copy, lambda m: m.update(format_version=99))
+    from peghole_mjx.policies import load_policy
+
+    with pytest.raises(CorruptFileError, match=needle):
+        load_policy(policy_copy)
+    rc, _, err = peghole(
+        ["envs", "rollout", "--env", "RectExtract", "--policy", policy_copy], capsys
+    )
+    assert rc == 2
+    assert_one_line(err, needle)
+
+
+def test_policy_is_checked_against_the_env_it_runs_in(policy_copy):
+    from peghole_mjx.envs import load
+    from peghole_mjx.policies import load_policy
+
+    bundle = load_policy(policy_copy)
+    with pytest.raises(UserInputError, match="not for DualExtract"):
+        bundle.check_env(load("DualExtract"))
+    env = bundle.make_env()  # the policy's own env fits
+    bundle.meta["network"]["observation_size"] = 10
+    with pytest.raises(UserInputError, match="observations of size 10"):
+        bundle.check_env(env)
+
+
+# ---------------------------------------------------------------------- 9. the CLI's net
+@pytest.mark.parametrize(
+    "exc, needle",
+    [
+        (OSError(errno.ENOSPC, "No space left on device", "/x/y"), "/x/y: No space left"),
+        (PermissionError(errno.EACCES, "Permission denied", "/x"), "Permission denied"),
+        (json.JSONDecodeError("Expecting value", "{", 1), "Expecting value"),
+        (__import__("zipfile").BadZipFile("File is not a zip file"), "not a zip file"),
+        (UserInputError("two\nlines"), "two lines"),
+    ],
+)
+def test_expected_failures_are_one_line_and_exit_2(monkeypatch, capsys, exc, needle):
+    def boom(args):
+        raise exc
+
+    monkeypatch.setattr(cli, "GROUPS", {"demo": "peghole_mjx.demo"})
+    import peghole_mjx.demo as demo
+
+    monkeypatch.setattr(demo, "cmd_demo", boom)
+    rc, _, err = peghole(["demo"], capsys)
+    assert rc == 2
+    assert_one_line(err, needle)
+
+
+def test_a_bug_shows_its_traceback_and_asks_for_a_report(monkeypatch, capsys):
+    import peghole_mjx.demo as demo
+
+    def bug(args):
+        raise ZeroDivisionError("division by zero")
+
+    monkeypatch.setattr(cli, "GROUPS", {"demo": "peghole_mjx.demo"})
+    monkeypatch.setattr(demo, "cmd_demo", bug)
+    rc, _, err = peghole(["demo"], capsys)
+    assert rc == 1
+    assert "Traceback" in err and "please report it" in err.splitlines()[-1]
+
+
+def test_bad_numbers_on_every_command_are_one_argparse_line(capsys):
+    for argv, needle in (
+        (["evaluate", "rect", "--seed", str(2**70)], "--seed"),
+        (["evaluate", "rect", "--episodes", "0"], "--episodes"),
+        (["envs", "rollout", "--env", "RectExtract", "--seed", "-1"], "--seed"),
+        (["analyze", "jamming", "--geometry", "dual", "--depth", "10", "--mu", "1e6"], "--mu"),
+        (["analyze", "jamming", "--geometry", "dual", "--depth", "nan"], "--depth"),
+        (["train", "--env", "RectExtract", "--stop-at-success", "nan"], "--stop-at-success"),
+    ):
+        rc, _, err = peghole(argv, capsys)
+        assert rc == 2
+        assert_one_line(err, needle)
