@@ -197,13 +197,15 @@ def test_cli_build_writes_loadable_scenes(tmp_path):
     assert res.returncode == 0, res.stderr
     for name in ("scene.xml", "free_peg.xml"):
         m = mujoco.MjModel.from_xml_path(str(tmp_path / name))
-        assert m.npair == 5
+        assert m.npair == 28  # the rect default: edge capsules (geometry/edges.py)
 
 
 def test_cli_check_one_preset_json():
     res = _cli("models", "check", "--preset", "rect-2", "--no-mjx", "--json")
     assert res.returncode == 0, res.stderr
-    (row,) = strict_json(res.stdout)
+    rows = strict_json(res.stdout)
+    assert [r["representation"] for r in rows] == ["edges", "box"]
+    row = rows[0]
     for key in (
         "preset",
         "nominal_clearance_mm",

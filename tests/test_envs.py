@@ -293,7 +293,7 @@ def test_random_policy_rarely_extracts_the_rect_peg(rect):
 
 
 @pytest.mark.slow
-def test_cli_rollout_scripted_rect_64_episodes():
+def test_cli_rollout_scripted_rect_32_episodes():
     res = subprocess.run(
         [
             sys.executable,
@@ -306,7 +306,7 @@ def test_cli_rollout_scripted_rect_64_episodes():
             "--policy",
             "scripted",
             "--episodes",
-            "64",
+            "32",
             "--json",
         ],
         capture_output=True,
@@ -325,7 +325,7 @@ def test_cli_rollout_scripted_rect_64_episodes():
         "nan_worlds",
     ):
         assert key in out
-    assert out["episodes"] == 64 and out["nan_worlds"] == 0
+    assert out["episodes"] == 32 and out["nan_worlds"] == 0
     assert out["success_rate"] >= 0.9
     assert out["physics_steps_per_s"] > 0 and out["compile_s"] > 0
 

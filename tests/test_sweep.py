@@ -5,6 +5,7 @@ from __future__ import annotations
 import dataclasses
 import json
 import math
+import os
 
 import numpy as np
 import pytest
@@ -172,3 +173,14 @@ def test_contact_check_runs_one_world():
         "all",
     }
     assert cc.table_row(run).startswith("| rect-2 | experiment |")
+
+
+def test_slice_claims_share_a_sweep_folder_between_processes(tmp_path):
+    part = tmp_path / "rect-2_mu0.266_key_000000.npz"
+    assert sweep._claim(part)  # free: taken
+    assert sweep._claim(part)  # ours already
+    claim = part.with_suffix(".claim")
+    claim.write_text("1")  # held by a live process (init)
+    assert not sweep._claim(part)
+    claim.write_text("4194303")  # held by a process that is gone: taken over
+    assert sweep._claim(part) and claim.read_text() == str(os.getpid())

@@ -56,10 +56,11 @@ def base_config(preset: str) -> config_dict.ConfigDict:
     return config_dict.create(
         preset=preset,
         impl="jax",  # "jax" (CPU, GPU) or "warp" (CUDA GPU)
-        # collision representation of the parts (geometry/parts.py): dual "capsule" (default,
-        # GPU-scale), "mesh" (exact 16-gon parts) or "cylinder" (warp only); rect: "edges"
-        # (default: edge-capsule contacts, geometry/edges.py) or "box"
-        representation=resolve_representation(spec),
+        # collision representation of the parts (geometry/parts.py); None: the preset's default
+        # (dual "capsule", GPU-scale; rect "edges", edge-capsule contacts); also dual "mesh"
+        # (exact 16-gon parts) or "cylinder" (warp only), rect "box". env.representation is
+        # the one in effect
+        representation=None,
         contact_cap=None,  # MJX max_contact_points; None: the measured cap (mjcf.CONTACT_CAPS)
         ctrl_dt=0.02,  # s, one env step (50 Hz)
         sim_dt=SimOptions().timestep,  # s, physics step (from the one place it is set)

@@ -276,29 +276,34 @@ def run_sweep(cfg: SweepConfig, out: Path, progress: bool = True) -> dict:
         table = {k: np.concatenate([t[k] for t in tabs]) for k in cx.WORLD_KEYS}
         owner = np.repeat(np.arange(len(ix)), 3 * grid.repeats)
         nw = len(owner)
-        summaries = []
+        summaries: dict[int, dict] = {}
+        deferred: list[int] = []
         ex = None
         for s0 in range(0, nw, cfg.batch_worlds):
             path = parts / f"{preset}_mu{mu:g}_{key}_{s0:06d}.npz"
             if path.exists():
-                with np.load(path) as z:
-                    summaries.append({k: z[k] for k in z.files})
+                summaries[s0] = _load_part(path)
                 bar.update()
+                continue
+            if not _claim(path):  # another process of the same sweep is running this slice
+                deferred.append(s0)
                 continue
             if ex is None:
                 ex = cx.Extraction(preset, exp, mu=mu)
-            sl = slice(s0, min(s0 + cfg.batch_worlds, nw))
-            n = sl.stop - sl.start
-            # pad the last slice to the compiled batch size (the padding is dropped)
-            pad = np.r_[np.arange(sl.start, sl.stop), np.full(cfg.batch_worlds - n, sl.start)]
-            res = ex.run(progress=False, table={k: v[pad] for k, v in table.items()})
-            summ = _world_summary(res, geometry)
-            summ = {k: (v if k == "curve_edges_mm" else v[:n]) for k, v in summ.items()}
-            tmp = path.with_suffix(".tmp.npz")
-            np.savez(tmp, **summ)
-            os.replace(tmp, path)
-            summaries.append(summ)
+            summaries[s0] = _run_slice(ex, table, s0, cfg.batch_worlds, nw, geometry, path)
             bar.update()
+        for s0 in deferred:
+            path = parts / f"{preset}_mu{mu:g}_{key}_{s0:06d}.npz"
+            while not path.exists() and not _claim(path):
+                time.sleep(5.0)
+            if path.exists():
+                summaries[s0] = _load_part(path)
+            else:  # its process died: run it here
+                if ex is None:
+                    ex = cx.Extraction(preset, exp, mu=mu)
+                summaries[s0] = _run_slice(ex, table, s0, cfg.batch_worlds, nw, geometry, path)
+            bar.update()
+        summaries = [summaries[k] for k in sorted(summaries)]
         merged = {
             k: (
                 summaries[0][k]
@@ -324,6 +329,68 @@ def run_sweep(cfg: SweepConfig, out: Path, progress: bool = True) -> dict:
     }
     write_results(result, out)
     return result
+
+
+def _load_part(path: Path) -> dict[str, np.ndarray]:
+    with np.load(path) as z:
+        return {k: z[k] for k in z.files}
+
+
+def _claim(path: Path) -> bool:
+    """Take the slice ``path`` for this process (a ``.claim`` file holding the PID), so that
+    several processes can share one sweep folder; a claim whose process is gone is taken
+    over. False if a live process holds it."""
+    claim = path.with_suffix(".claim")
+    for _ in range(2):
+        try:
+            fd = os.open(claim, os.O_CREAT | os.O_EXCL | os.O_WRONLY)
+        except FileExistsError:
+            try:
+                pid = int(claim.read_text().strip() or 0)
+            except (OSError, ValueError):
+                pid = 0
+            if pid == os.getpid():
+                return True
+            alive = False
+            if pid > 0:
+                try:
+                    os.kill(pid, 0)
+                    alive = True
+                except ProcessLookupError:
+                    alive = False
+                except PermissionError:
+                    alive = True
+            if alive:
+                return False
+            claim.unlink(missing_ok=True)
+            continue
+        with os.fdopen(fd, "w") as f:
+            f.write(str(os.getpid()))
+        return True
+    return False
+
+
+def _run_slice(
+    ex: cx.Extraction,
+    table: dict[str, np.ndarray],
+    s0: int,
+    batch: int,
+    nw: int,
+    geometry: str,
+    path: Path,
+) -> dict[str, np.ndarray]:
+    """Run worlds ``s0 .. s0 + batch`` (the last slice padded to the compiled batch size),
+    save their summaries atomically to ``path`` and release the claim."""
+    n = min(batch, nw - s0)
+    pad = np.r_[np.arange(s0, s0 + n), np.full(batch - n, s0)]
+    res = ex.run(progress=False, table={k: v[pad] for k, v in table.items()})
+    summ = _world_summary(res, geometry)
+    summ = {k: (v if k == "curve_edges_mm" else v[:n]) for k, v in summ.items()}
+    tmp = path.with_suffix(".tmp.npz")
+    np.savez(tmp, **summ)
+    os.replace(tmp, path)
+    path.with_suffix(".claim").unlink(missing_ok=True)
+    return summ
 
 
 def _h0_mm(preset: str, exp: cx.ExperimentConfig) -> float:
@@ -564,7 +631,7 @@ def write_figures(result: dict, out: Path) -> list[Path]:
         ax.set_xlabel("K_lat L_C,top^2 / K_theta  (dimensionless)")
         ax.set_title(f"{g}: peak F_z reduction, L_C tip vs {key.split('_')[-1]}")
         ax.axhline(0.0, color="grey", lw=0.5)
-    axes[0].set_ylabel("reduction of the mean peak F_z, %  (dashed: quasi-static oracle)")
+    axes[0].set_ylabel("peak F_z reduction, % (dashed: oracle)")
     axes[1].legend(fontsize=7, loc="lower right")
     fig.tight_layout()
     p = out / f"reduction_vs_regime_{g}.png"
