@@ -317,7 +317,7 @@ def run_sweep(cfg: SweepConfig, out: Path, progress: bool = True) -> dict:
             per_cell[i] = {k: (v if k == "curve_edges_mm" else v[sel]) for k, v in merged.items()}
             per_cell[i]["table"] = tabs[j]
     bar.close()
-    rows = [_cell_result(cells[i], per_cell[i], grid, cfg.seed) for i in range(len(cells))]
+    rows = [_cell_result(cells[i], per_cell[i], grid, cfg.seed, exp) for i in range(len(cells))]
     result = {
         "geometry": geometry,
         "cells": rows,
@@ -398,12 +398,12 @@ def _h0_mm(preset: str, exp: cx.ExperimentConfig) -> float:
     return PRESETS[preset].hole_depth_mm - exp.sim_options().tip_gap_mm
 
 
-def _cell_result(cell: dict, d: dict, grid: Grid, seed: int) -> dict:
+def _cell_result(cell: dict, d: dict, grid: Grid, seed: int, exp: cx.ExperimentConfig) -> dict:
     geometry = PRESETS[cell["preset"]].kind
     lcs = cx.LC_MM[geometry]
     r = grid.repeats
     tab = d["table"]
-    h0 = _h0_mm(cell["preset"], cx.ExperimentConfig(geometry=geometry))
+    h0 = _h0_mm(cell["preset"], exp)
     qs = cx.quasi_static(cell["preset"], cell["mu"], tab, h0)
     qs_late = cx.quasi_static_peaks(qs, h0, cx.EARLY_MM[geometry])
     qs_all = cx.quasi_static_peaks(qs, h0, 0.0)
