@@ -14,6 +14,10 @@ class CorruptFileError(UserInputError):
     """A file that peghole_mjx wrote (or should have) is truncated, garbled or tampered with."""
 
 
+class MissingExtraError(UserInputError, ImportError):
+    """An optional dependency is not installed; the message names the extra that installs it."""
+
+
 # after the classes above: specs validates its presets at import, with peghole_mjx.validation,
 # which imports UserInputError from here
 from peghole_mjx.geometry.specs import InfeasibleGeometryError  # noqa: E402

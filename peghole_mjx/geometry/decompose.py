@@ -20,12 +20,18 @@ from pathlib import Path
 
 import numpy as np
 
+from peghole_mjx._optional import optional_import
 from peghole_mjx.errors import UserInputError
 from peghole_mjx.geometry.specs import MM, DualSpec, PegHoleSpec, RectSpec
 
 #: warn when the hulls' excess deviation exceeds this fraction of the radial clearance
 WARN_FRACTION = 0.25
 UNITS = {"mm": 1e-3, "cm": 1e-2, "m": 1.0}
+
+
+def _cad(name: str):
+    """Module ``name`` of the ``cad`` extra, or a one-line error naming the install command."""
+    return optional_import(name, "decomposing CAD parts (peghole models decompose)")
 
 
 class DecompositionWarning(UserWarning):
@@ -72,7 +78,7 @@ def load_mesh(path: str | Path, units: str = "mm"):
     Raises :class:`UserInputError` for a missing file, an unreadable or empty mesh, or a mesh
     that is not watertight (open edges: no inside/outside, no volume).
     """
-    import trimesh
+    trimesh = _cad("trimesh")
 
     path = Path(path)
     if units not in UNITS:
@@ -104,8 +110,8 @@ def load_mesh(path: str | Path, units: str = "mm"):
 
 def run_coacd(mesh, params: CoacdParams = CoacdParams()) -> list[np.ndarray]:
     """Convex hulls (list of vertex arrays, metres) of ``mesh`` by CoACD."""
-    import coacd
-    import trimesh
+    coacd = _cad("coacd")
+    trimesh = _cad("trimesh")
 
     coacd.set_log_level("error")
     parts = coacd.run_coacd(
@@ -143,7 +149,8 @@ def measure_deviation(
     mesh, hulls: list[np.ndarray], n_samples: int = 20000, seed: int = 0
 ) -> Deviation:
     """Sample the hulls' surfaces; measure how far the points outside the part lie from it."""
-    import trimesh
+    trimesh = _cad("trimesh")
+    _cad("rtree")  # trimesh's proximity queries
 
     rng = np.random.default_rng(seed)
     hull_meshes = [trimesh.Trimesh(h).convex_hull for h in hulls]
@@ -168,7 +175,8 @@ def measure_deviation(
 def estimate_radial_clearance_mm(peg, hole) -> float:
     """Radial clearance of the assembled pair: the smallest gap between the peg's side faces
     (normals within 10 degrees of horizontal) and the hole surface, mm."""
-    import trimesh
+    trimesh = _cad("trimesh")
+    _cad("rtree")  # trimesh's proximity queries
 
     pts, face_idx = trimesh.sample.sample_surface(peg, 20000, seed=1)
     side = np.abs(peg.face_normals[face_idx][:, 2]) < math.sin(math.radians(10))
@@ -378,7 +386,8 @@ def decompose_parts(
 def cad_meshes(spec: PegHoleSpec, sections: int = 128):
     """CAD-like (true round, not polygonal) peg and hole-block meshes of a spec, in mm,
     in the assembled pose (peg fully inserted, hole mouth at z = 0, +z up). For round trips."""
-    import trimesh
+    trimesh = _cad("trimesh")
+    _cad("manifold3d")  # trimesh's boolean difference
 
     depth = spec.hole_depth_mm
     if isinstance(spec, RectSpec):

@@ -1,0 +1,40 @@
+"""Optional dependencies: a missing extra gives one line naming the install command."""
+
+import sys
+
+import pytest
+
+from peghole_mjx import cli
+from peghole_mjx.errors import MissingExtraError, UserInputError
+
+
+@pytest.mark.parametrize("module", ["trimesh", "coacd"])
+def test_decompose_without_the_cad_extra_names_it(tmp_path, capsys, monkeypatch, module):
+    """Simulate an install without the cad extra: a ``None`` entry in sys.modules makes
+    ``import`` raise ImportError, as a missing package does."""
+    monkeypatch.setitem(sys.modules, module, None)
+    part = tmp_path / "part.stl"
+    part.write_bytes(b"solid x\nendsolid x\n")
+    if module == "coacd":  # load_mesh needs trimesh only; CoACD is reached in run_coacd
+        from peghole_mjx.geometry.decompose import run_coacd
+
+        with pytest.raises(MissingExtraError, match=r'coacd.*pip install -e "\.\[cad\]"'):
+            run_coacd(None)
+        return
+    rc = cli.main(["models", "decompose", str(part), str(part), "--out", str(tmp_path / "o")])
+    err = capsys.readouterr().err
+    assert rc == 2
+    lines = err.strip().splitlines()
+    assert len(lines) == 1, err
+    assert 'needs trimesh, which is not installed: pip install -e ".[cad]"' in lines[0]
+    assert not (tmp_path / "o" / "scene.xml").exists()
+
+
+def test_missing_extra_error_is_a_user_input_and_an_import_error():
+    from peghole_mjx._optional import optional_import
+
+    with pytest.raises(MissingExtraError) as info:
+        optional_import("gymnasium_not_installed_here", "the test")
+    assert isinstance(info.value, UserInputError)
+    assert isinstance(info.value, ImportError)
+    assert "pip install gymnasium_not_installed_here" in str(info.value)
