@@ -22,7 +22,7 @@ import numpy as np
 
 RESULTS = Path(__file__).resolve().parent / "results"
 
-#: the throughput CSV's columns, in order (issue 7)
+#: the throughput CSV's columns, in order
 COLUMNS = (
     "engine",
     "device",
@@ -42,7 +42,7 @@ SCENES = {
     "dual-mesh": "DualExtract",
     "dual-cylinder": "DualExtract",
 }
-#: env config overrides of the scene variants (collision representations, issue 20)
+#: env config overrides of the scene variants (collision representations)
 SCENE_OVERRIDES: dict[str, dict] = {
     "dual-mesh": {"representation": "mesh"},
     "dual-cylinder": {"representation": "cylinder"},  # MuJoCo Warp (and C) only

@@ -1,4 +1,4 @@
-"""Fidelity of the capsule representation of the dual parts against the exact mesh one (issue 20).
+"""Fidelity of the capsule representation of the dual parts against the exact mesh one.
 
 ``baseline``: the DualExtract scripted baseline (straight pull at 20 mm/s, the fixed stiffness)
 in the env of the published dual policy (``peghole_mjx/policies/dual_extract/policy.json``:

@@ -1,4 +1,4 @@
-"""Contact caps sized from measurement: the most active contacts per scene (issue 20, item 2).
+"""Contact caps sized from measurement: the most active contacts per scene.
 
 For each scene and collision representation (rect: box; dual: capsule and mesh) the env is
 built WITHOUT a contact cap (``contact_cap=0``) and rolled out under the scripted policy

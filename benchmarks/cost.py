@@ -1,4 +1,4 @@
-"""Cost measures that need no GPU, per scene and collision representation (issue 20, item 4).
+"""Cost measures that need no GPU, per scene and collision representation.
 
 For RectExtract (box) and DualExtract in each MJX-JAX representation (capsule, mesh):
 
@@ -8,7 +8,7 @@ For RectExtract (box) and DualExtract in each MJX-JAX representation (capsule, m
 
   - ``env_step``: ``jit(vmap(env.step))``, one control step (the 10-substep scan body and the
     solver loop body are counted ONCE: about one physics step plus the control law; the figure
-    of ``roofline.json`` and of the issue's 66.7 MB),
+    of ``roofline.json`` and of the 66.7 MB target),
   - ``physics_step``: ``mjx.step`` alone,
   - stages of it: ``kinematics`` (``mjx.kinematics`` + ``com_pos``), ``collision``
     (``mjx.collision``), ``solver_iteration`` (``mjx.solve``: its loop body counted once, so

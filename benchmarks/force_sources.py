@@ -13,8 +13,8 @@ Writes ``benchmarks/results/force_sources_<env>_<device>.json``::
     python benchmarks/force_sources.py --env dual --episodes 16
 
 The committed dual file was measured on the mesh scene (then the only one): reproduce it with
-``--representation mesh`` (DualExtract's default is now the capsule scene, README "Fidelity of
-the capsule representation").
+``--representation mesh`` (DualExtract's default is now the capsule scene; docs/models.md,
+"Fidelity of the capsule representation").
 """
 
 from __future__ import annotations

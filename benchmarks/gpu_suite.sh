@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# One command for a lent H100/H200 (issue 20, item 6): install what the image lacks from carried
+# One command for an H100/H200 machine: install what the image lacks from carried
 # wheels, then the throughput sweep (mjx-jax and mjx-warp, rect and dual in each collision
 # representation, up to 16 384 worlds, and all-core MuJoCo C for the >= 5x target), the
 # cost/roofline measures, the time-to-success benchmark and a full-profile training of each env,

@@ -1,4 +1,4 @@
-"""Plots of the benchmark results (issue 7), PNGs under benchmarks/results/.
+"""Plots of the benchmark results, PNGs under benchmarks/results/.
 
 * ``throughput_<device>_<scene>.png``: physics steps/s vs worlds, log-log, one line per engine
   (one figure per scene and device CSV);

@@ -1,4 +1,4 @@
-"""The thesis's simulator rebuilt as a baseline: RectExtract in PyBullet (seed stack, issue 7).
+"""The thesis's simulator rebuilt as a baseline: RectExtract in PyBullet (seed stack).
 
 Same task as :class:`peghole_mjx.envs.RectExtract`, with every number taken from the project
 (one source of truth): the rect-2 peg-hole (:func:`peghole_mjx.geometry.specs.get_preset`),

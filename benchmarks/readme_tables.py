@@ -1,8 +1,10 @@
-"""Regenerate the README's result tables from the committed files in benchmarks/results/.
+"""Regenerate the result tables of the docs from the committed files in benchmarks/results/.
 
-Each table sits between ``<!-- table:NAME -->`` and ``<!-- /table:NAME -->`` markers, so every
-number in the README traces to a committed result file. Run: ``python benchmarks/readme_tables.py``
-(``--check`` exits 1 if the README is out of date; the test suite runs that check).
+Each table sits between ``<!-- table:NAME -->`` and ``<!-- /table:NAME -->`` markers in the
+Markdown file that :data:`TABLE_FILES` names, so every number in the docs traces to a committed
+result file. Links in a table are written relative to the repository root and rewritten
+relative to the file that holds it. Run: ``python benchmarks/readme_tables.py`` (``--check``
+exits 1 if a file is out of date; the test suite runs that check).
 """
 
 from __future__ import annotations
@@ -15,7 +17,6 @@ from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
 RESULTS = ROOT / "benchmarks" / "results"
-README = ROOT / "README.md"
 sys.path.insert(0, str(ROOT / "benchmarks"))
 
 from bench_common import ENGINES, read_csv  # noqa: E402
@@ -550,7 +551,7 @@ def cost() -> str:
             f"{e['constraint_rows']} | {e['mjx_data_bytes_per_world']} | {mb('env_step')} | "
             f"{mb('physics_step')} | {mb('kinematics')} | {mb('collision')} | "
             f"{mb('solver_iteration')} | {x['env_step']['flops_per_world'] / 1e6:.1f} | "
-            f"{e['env_step_compile_s']} | {est[0]} | {est[1]} | unmeasured (no GPU lent) |"
+            f"{e['env_step_compile_s']} | {est[0]} | {est[1]} | unmeasured (no GPU run yet) |"
         )
     speed = data.get("speed") or []
     if speed:
@@ -595,27 +596,75 @@ TABLES = {
 }
 
 
-def render(text: str) -> str:
-    for name, fn in TABLES.items():
+#: the Markdown file (relative to the repository root) that holds each table
+TABLE_FILES = {
+    "models_check": "docs/models.md",
+    "contact_check": "docs/compliance.md",
+    "compliance_sweep": "docs/compliance.md",
+    "compliance_findings": "docs/compliance.md",
+    "env_rollouts": "docs/envs.md",
+    "pretrained": "docs/results.md",
+    "force_sources": "docs/results.md",
+    "rl_vs_rlcs": "docs/results.md",
+    "throughput": "docs/benchmarks.md",
+    "roofline": "docs/benchmarks.md",
+    "cost": "docs/benchmarks.md",
+    "time_to_success": "docs/benchmarks.md",
+}
+assert set(TABLE_FILES) == set(TABLES)
+
+_LINK = re.compile(r"\]\(([^)\s]+)\)")
+
+
+def relink(table: str, rel_file: str) -> str:
+    """Rewrite the repository-root-relative link targets of ``table`` relative to the
+    directory of ``rel_file`` (absolute URLs and anchors unchanged)."""
+    up = "../" * rel_file.count("/")
+    if not up:
+        return table
+
+    def fix(m: re.Match) -> str:
+        target = m.group(1)
+        if re.match(r"[a-z]+:|#|/|\.\./", target):
+            return m.group(0)
+        return f"]({up}{target})"
+
+    return _LINK.sub(fix, table)
+
+
+def render(text: str, rel_file: str = "README.md", names=None) -> str:
+    """``text`` with the tables ``names`` (default: those of ``rel_file``) regenerated."""
+    if names is None:
+        names = [n for n, f in TABLE_FILES.items() if f == rel_file]
+    for name in names:
+        fn = TABLES[name]
         pattern = re.compile(rf"(<!-- table:{name} -->\n).*?(<!-- /table:{name} -->)", re.S)
         if not pattern.search(text):
-            raise SystemExit(f"README has no markers for table {name!r}")
-        text = pattern.sub(lambda m, fn=fn: m.group(1) + fn() + "\n" + m.group(2), text)
+            raise SystemExit(f"{rel_file} has no markers for table {name!r}")
+        text = pattern.sub(
+            lambda m, fn=fn: m.group(1) + relink(fn(), rel_file) + "\n" + m.group(2), text
+        )
     return text
 
 
 def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__)
-    ap.add_argument("--check", action="store_true", help="exit 1 if README is out of date")
+    ap.add_argument("--check", action="store_true", help="exit 1 if a file is out of date")
     args = ap.parse_args()
-    old = README.read_text()
-    new = render(old)
-    if args.check:
-        if new != old:
-            print("README tables are out of date: run python benchmarks/readme_tables.py")
-            return 1
-        return 0
-    README.write_text(new)
+    stale = []
+    for rel_file in sorted(set(TABLE_FILES.values())):
+        path = ROOT / rel_file
+        old = path.read_text()
+        new = render(old, rel_file)
+        if new == old:
+            continue
+        if args.check:
+            stale.append(rel_file)
+        else:
+            path.write_text(new)
+    if stale:
+        print(f"tables out of date in {', '.join(stale)}: run python benchmarks/readme_tables.py")
+        return 1
     return 0
 
 

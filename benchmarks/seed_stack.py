@@ -45,7 +45,7 @@ from bench_common import (  # noqa: E402
     versions_dict,
 )
 
-#: the thesis's SAC settings (issue 7); everything else is SB3's default
+#: the thesis's SAC settings; everything else is SB3's default
 SAC_SETTINGS = {
     "policy": "MlpPolicy",
     "gamma": 0.99,
@@ -196,7 +196,7 @@ def main(argv: list[str] | None = None) -> int:
         "date": utc_now(),
         "note": (
             args.note
-            or "CPU contended: another engineer's CPU training jobs ran on the same 2 cores"
+            or "CPU possibly contended: other jobs may share the cores (load averages recorded)"
         ),
         "load_average_before": load0,
         "load_average_after": load_average(),

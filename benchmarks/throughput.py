@@ -1,4 +1,4 @@
-"""Throughput of the extraction scenes vs the number of worlds, per engine (issue 7).
+"""Throughput of the extraction scenes vs the number of worlds, per engine.
 
 Measures physics steps/s and env (control) steps/s (one env step = ``env.n_substeps`` = 10
 physics steps of 2 ms) of the ``rect`` (RectExtract, rect-2) and ``dual`` (DualExtract,

@@ -5,7 +5,7 @@ Steps (each also a command of its own):
 1. ``peghole models build`` for rect-2 and dual-2 (MJCF scenes with the iiwa);
 2. ``peghole experiment compliance --geometry rect --quick`` (L_C at tip / centre / top);
 3. ``peghole train --env RectExtract --quick`` (a short Brax SAC run; ``--profile full`` on a
-   GPU, which trains to the issue's targets);
+   GPU, which trains to the GPU targets of docs/results.md);
 4. ``peghole evaluate rect`` (the committed pretrained policy vs the scripted baseline);
 5. ``report.md`` linking the figures.
 

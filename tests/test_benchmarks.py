@@ -1,4 +1,4 @@
-"""Benchmarks (issue 7): CSV format, roofline arithmetic, the NumPy impedance port, the MuJoCo
+"""Benchmarks: CSV format, roofline arithmetic, the NumPy impedance port, the MuJoCo
 C control step, the PyBullet baseline env (skipped without pybullet), result readers."""
 
 import csv
@@ -391,7 +391,7 @@ def test_committed_dual_per_episode_file_matches_the_published_evaluation():
     assert lo < got["reduction_pct"] < hi
 
 
-def test_committed_session8_dual_analysis_is_reproduced_from_its_episodes():
+def test_committed_2n_bound_dual_analysis_is_reproduced_from_its_episodes():
     """The 2 N-bound evaluation kept as history: its analysis follows from its episode file."""
     res = ROOT / "benchmarks" / "results" / "dual_ffcap_cpu-2core"
     got = paired_reduction.analyse(res / "episodes1024.csv", chosen_on=64)

@@ -1,5 +1,7 @@
-"""The README's result tables are generated from committed result files and up to date."""
+"""The README and docs: generated result tables up to date, the quick start's two commands,
+every CLI command documented, every relative link resolving."""
 
+import re
 import subprocess
 import sys
 from pathlib import Path
@@ -39,3 +41,15 @@ def test_every_cli_command_is_documented_in_the_readme():
     sub = next(a for a in build_parser()._actions if a.dest == "group")
     for name in sub.choices:
         assert f"`peghole {name}" in readme, name
+
+
+def test_relative_links_of_the_readme_and_docs_resolve():
+    files = [ROOT / "README.md", *sorted((ROOT / "docs").glob("*.md"))]
+    missing = []
+    for md in files:
+        for target in re.findall(r"\]\(([^)\s]+)\)", md.read_text()):
+            if re.match(r"[a-z]+:|#", target):
+                continue
+            if not (md.parent / target.split("#")[0]).exists():
+                missing.append(f"{md.relative_to(ROOT)}: {target}")
+    assert not missing, missing
