@@ -54,8 +54,11 @@ def _step(name: str) -> float:
 def cmd_demo(args: argparse.Namespace) -> int:
     import jax
 
-    from peghole_mjx.cli import main as peghole
     from peghole_mjx.errors import UserInputError
+    from peghole_mjx.experiments.compliance import ExperimentConfig
+    from peghole_mjx.experiments.report import run_experiment
+    from peghole_mjx.geometry.mjcf import write_scenes
+    from peghole_mjx.geometry.specs import get_preset
     from peghole_mjx.training.config import load_train_config
     from peghole_mjx.training.evaluate import evaluate
     from peghole_mjx.training.run import TrainingRun
@@ -74,25 +77,12 @@ def cmd_demo(args: argparse.Namespace) -> int:
 
     t = _step("1/4 build the rect-2 and dual-2 scenes")
     for preset in ("rect-2", "dual-2"):
-        rc = peghole(["models", "build", "--preset", preset, "--out", str(out / "models" / preset)])
-        if rc:
-            return rc
+        scene, _, rep = write_scenes(get_preset(preset), out / "models" / preset)
+        print(f"wrote {scene} (collision representation: {rep})", file=sys.stderr)
     timings["models"] = time.perf_counter() - t
 
     t = _step("2/4 compliance experiment (rect, quick)")
-    rc = peghole(
-        [
-            "experiment",
-            "compliance",
-            "--geometry",
-            "rect",
-            "--quick",
-            "--out",
-            str(out / "compliance"),
-        ]
-    )
-    if rc:
-        return rc
+    run_experiment(ExperimentConfig.quick("rect"), out / "compliance")
     timings["experiment"] = time.perf_counter() - t
 
     t = _step(f"3/4 train SAC on RectExtract (profile {profile})")

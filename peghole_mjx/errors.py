@@ -1,4 +1,8 @@
-"""Errors that the command line reports as a one-line message (no traceback)."""
+"""Errors that the command line reports as a one-line message (no traceback).
+
+The package's exception classes live here and import nothing from the package, so that any
+module can raise them (``geometry.specs`` re-exports :class:`InfeasibleGeometryError`).
+"""
 
 from __future__ import annotations
 
@@ -14,13 +18,22 @@ class CorruptFileError(UserInputError):
     """A file that peghole_mjx wrote (or should have) is truncated, garbled or tampered with."""
 
 
+class InfeasibleGeometryError(ValueError):
+    """A peg-hole specification violates a size or extractability condition.
+
+    ``condition`` names the violated condition (e.g. ``"eq 2.1"``), ``values`` the numbers.
+    """
+
+    def __init__(self, condition: str, message: str, values: dict[str, float] | None = None):
+        self.condition = condition
+        self.values = dict(values or {})
+        detail = ", ".join(f"{k} = {v:g}" for k, v in self.values.items())
+        super().__init__(f"{condition} violated: {message}" + (f" ({detail})" if detail else ""))
+
+
 class MissingExtraError(UserInputError, ImportError):
     """An optional dependency is not installed; the message names the extra that installs it."""
 
-
-# after the classes above: specs validates its presets at import, with peghole_mjx.validation,
-# which imports UserInputError from here
-from peghole_mjx.geometry.specs import InfeasibleGeometryError  # noqa: E402
 
 #: Exceptions that ``peghole`` prints as ``peghole: error: ...`` with exit status 2: wrong
 #: user values, and the expected failures of files (missing, unreadable, not writable, a

@@ -106,3 +106,21 @@ def test_analytic_hook_uses_the_quasi_static_model():
     # dual-2 (2c = 0.2 mm over a 50 mm peg): 0.2 deg cannot make two-point contact
     dual = analytic_two_point_hook("dual-2", 25.0, cfg, beta0_rad=np.radians([0.2]), h0_mm=49.5)
     assert dual["interval_mm"] is None and set(dual["per_category"]) == {"5", "10", "9"}
+
+
+def test_quick_experiment_is_one_definition(tmp_path, monkeypatch):
+    """`peghole experiment compliance --quick` and `peghole demo` run ExperimentConfig.quick."""
+    from peghole_mjx.experiments import report
+
+    quick = ExperimentConfig.quick("dual", seed=3)
+    assert quick.preset_names() == ("dual-2",) and quick.repeats == 2 and quick.seed == 3
+    seen = []
+
+    def fake_run(cfg, out):
+        seen.append(cfg)
+        return {"peak_force_N": {}}, []
+
+    monkeypatch.setattr(report, "run_experiment", fake_run)
+    argv = ["experiment", "compliance", "--geometry", "dual", "--quick", "--seed", "3"]
+    assert main([*argv, "--out", str(tmp_path)]) == 0
+    assert seen == [quick]

@@ -4,7 +4,6 @@ from __future__ import annotations
 
 import argparse
 import dataclasses
-import time
 from pathlib import Path
 
 from peghole_mjx.errors import UserInputError
@@ -77,15 +76,15 @@ def add_parser(subparsers) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from peghole_mjx.experiments.compliance import ExperimentConfig, Extraction
-    from peghole_mjx.experiments.report import summarise, write_outputs
+    from peghole_mjx.experiments.compliance import ExperimentConfig
+    from peghole_mjx.experiments.report import run_experiment
     from peghole_mjx.geometry.specs import PRESETS
 
     if args.geometry not in ("rect", "dual"):
         raise UserInputError(f"--geometry must be rect or dual, not {args.geometry!r}")
     cfg = ExperimentConfig(geometry=args.geometry, seed=args.seed)
     if args.quick:
-        cfg = dataclasses.replace(cfg, presets=(f"{args.geometry}-2",), repeats=2)
+        cfg = ExperimentConfig.quick(args.geometry, seed=args.seed)
     if args.presets:
         names = tuple(n.strip() for n in args.presets.split(",") if n.strip())
         bad = [n for n in names if n not in PRESETS or PRESETS[n].kind != args.geometry]
@@ -96,10 +95,8 @@ def run(args: argparse.Namespace) -> int:
         if args.repeats < 1:
             raise UserInputError("--repeats must be >= 1")
         cfg = dataclasses.replace(cfg, repeats=args.repeats)
-    t0 = time.time()
-    results = {name: Extraction(name, cfg).run() for name in cfg.preset_names()}
-    summary = summarise(results, cfg, time.time() - t0)
-    for f in write_outputs(results, summary, args.out):
+    summary, files = run_experiment(cfg, args.out)
+    for f in files:
         print(f)
     for preset, pk in summary["peak_force_N"].items():
         print(

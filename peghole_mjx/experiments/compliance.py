@@ -136,6 +136,12 @@ class ExperimentConfig:
             contact_timeconst=CONTACT_TIMECONST_S[self.geometry],
         )
 
+    @classmethod
+    def quick(cls, geometry: str = "rect", seed: int = 0) -> ExperimentConfig:
+        """The quick experiment (``--quick``, ``peghole demo``): one preset (rect-2 or
+        dual-2), 2 repeats."""
+        return cls(geometry=geometry, presets=(f"{geometry}-2",), repeats=2, seed=seed)
+
     def preset_names(self) -> tuple[str, ...]:
         if self.presets:
             return self.presets

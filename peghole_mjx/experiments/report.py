@@ -208,3 +208,16 @@ def write_outputs(results: dict[str, dict], summary: dict, out: Path) -> list[Pa
     plt.close(fig)
     files.append(p)
     return files
+
+
+def run_experiment(cfg: ExperimentConfig, out: str | Path) -> tuple[dict, list[Path]]:
+    """Run the compliance-centre experiment ``cfg`` (every preset's batched pull), write its
+    curves, figures and ``summary.json`` into ``out``; return the summary and the files."""
+    import time
+
+    from peghole_mjx.experiments.compliance import Extraction
+
+    t0 = time.time()
+    results = {name: Extraction(name, cfg).run() for name in cfg.preset_names()}
+    summary = summarise(results, cfg, time.time() - t0)
+    return summary, write_outputs(results, summary, Path(out))

@@ -229,28 +229,11 @@ def spec_from_args(args: argparse.Namespace):
 
 
 def cmd_build(args: argparse.Namespace) -> int:
-    """Both scenes are built and compiled in memory first, then written together (both
-    files or neither)."""
-    from peghole_mjx.geometry.mjcf import build_scene
-    from peghole_mjx.geometry.parts import resolve_representation
+    """Both scenes are written together (both files or neither): ``mjcf.write_scenes``."""
+    from peghole_mjx.geometry.mjcf import write_scenes
 
     spec = spec_from_args(args)
-    rep = resolve_representation(spec, args.representation)
-    fileio.check_out_dir(args.out)
-    kw = {"representation": rep, "contact_cap": args.contact_cap}
-    xml = {}
-    for name, robot in (("scene.xml", True), ("free_peg.xml", False)):
-        try:
-            s = build_scene(spec, robot=robot, **kw)
-            s.compile()
-        except RuntimeError as exc:  # the inserted pose's inverse kinematics
-            raise UserInputError(
-                f"the robot cannot reach this geometry's inserted pose ({exc}); keep every "
-                f"size within the robot's reach"
-            ) from None
-        xml[args.out / name] = s.to_xml()
-    fileio.write_many(xml)
-    scene, free = args.out / "scene.xml", args.out / "free_peg.xml"
+    scene, free, rep = write_scenes(spec, args.out, args.representation, args.contact_cap)
     print(f"wrote {scene} and {free} (collision representation: {rep})")
     print(
         f"  nominal diametral clearance {spec.clearance_mm:.3f} mm; view with: "

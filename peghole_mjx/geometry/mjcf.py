@@ -426,3 +426,36 @@ def write_scene(
 
 def with_sim(sim: SimOptions, **changes) -> SimOptions:
     return dataclasses.replace(sim, **changes)
+
+
+def write_scenes(
+    spec: PegHoleSpec,
+    out: str | Path,
+    representation: str | None = None,
+    contact_cap: int | None = None,
+) -> tuple[Path, Path, str]:
+    """Write ``scene.xml`` (robot, peg on the flange, hole block, floor) and ``free_peg.xml``
+    of ``spec`` into directory ``out``; return their paths and the collision representation.
+
+    Both scenes are built and compiled in memory first, then written together (both files or
+    neither). ``representation=None``: the preset's default (``parts.resolve_representation``).
+    """
+    from peghole_mjx import fileio
+    from peghole_mjx.geometry.parts import resolve_representation
+
+    out = Path(out)
+    rep = resolve_representation(spec, representation)
+    fileio.check_out_dir(out)
+    xml = {}
+    for name, robot in (("scene.xml", True), ("free_peg.xml", False)):
+        try:
+            s = build_scene(spec, robot=robot, representation=rep, contact_cap=contact_cap)
+            s.compile()
+        except RuntimeError as exc:  # the inserted pose's inverse kinematics
+            raise UserInputError(
+                f"the robot cannot reach this geometry's inserted pose ({exc}); keep every "
+                f"size within the robot's reach"
+            ) from None
+        xml[out / name] = s.to_xml()
+    fileio.write_many(xml)
+    return out / "scene.xml", out / "free_peg.xml", rep

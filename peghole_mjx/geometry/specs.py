@@ -26,20 +26,9 @@ import math
 from dataclasses import dataclass, field
 from typing import Literal
 
+from peghole_mjx.errors import InfeasibleGeometryError
+
 MM = 1e-3  # metres per millimetre
-
-
-class InfeasibleGeometryError(ValueError):
-    """A peg-hole specification violates a size or extractability condition.
-
-    ``condition`` names the violated condition (e.g. ``"eq 2.1"``), ``values`` the numbers.
-    """
-
-    def __init__(self, condition: str, message: str, values: dict[str, float] | None = None):
-        self.condition = condition
-        self.values = dict(values or {})
-        detail = ", ".join(f"{k} = {v:g}" for k, v in self.values.items())
-        super().__init__(f"{condition} violated: {message}" + (f" ({detail})" if detail else ""))
 
 
 @dataclass(frozen=True)

@@ -1,5 +1,7 @@
-"""Optional dependencies: a missing extra gives one line naming the install command."""
+"""The error module and optional dependencies: errors.py depends on nothing in the package; a
+missing extra gives one line naming the install command."""
 
+import subprocess
 import sys
 
 import pytest
@@ -38,3 +40,21 @@ def test_missing_extra_error_is_a_user_input_and_an_import_error():
     assert isinstance(info.value, UserInputError)
     assert isinstance(info.value, ImportError)
     assert "pip install gymnasium_not_installed_here" in str(info.value)
+
+
+def test_errors_module_imports_nothing_from_the_package():
+    """Any module can raise the package's errors without an import cycle."""
+    code = (
+        "import sys, peghole_mjx.errors; "
+        "print(sorted(m for m in sys.modules if m.startswith('peghole_mjx.')))"
+    )
+    res = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
+    assert res.stdout.strip() == "['peghole_mjx.errors']"
+
+
+def test_specs_reexports_the_geometry_error():
+    from peghole_mjx import errors
+    from peghole_mjx.geometry import specs
+
+    assert specs.InfeasibleGeometryError is errors.InfeasibleGeometryError
+    assert errors.InfeasibleGeometryError in errors.REPORTED_ERRORS
