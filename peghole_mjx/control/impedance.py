@@ -16,9 +16,11 @@ max Cartesian torque [3, 3, 1] N m), and maps it to joint torques::
     tau = J_C^T [F; M] + qfrc_bias + N^T (K_n (q_n - q) - D_n qdot)
     N^T = I - J^T Jbar^T,  Jbar = M^-1 J^T Lambda   (dynamically consistent null space)
 
-``qfrc_bias`` is MuJoCo's gravity + Coriolis/centrifugal term (the peg's mass included), and
-``tau`` is clipped to the actuator ``ctrlrange`` read from the model. ``J_C`` is the 6 x nv
-Jacobian of the point ``C`` on the peg body (``mjx`` ``support.jac``).
+``qfrc_bias`` is MuJoCo's gravity + Coriolis/centrifugal term (the peg's mass included); with
+``compensate_passive`` the law also cancels the model's passive joint forces (``- qfrc_passive``:
+the joint damping), as a joint-torque-sensing arm's inner loop does; ``tau`` is clipped to the
+actuator ``ctrlrange`` read from the model. ``J_C`` is the 6 x nv Jacobian of the point ``C``
+on the peg body (``mjx`` ``support.jac``).
 
 Everything is a pure function of ``(mjx.Model, mjx.Data, Target, ImpedanceParams)`` pytrees, so
 it jits, vmaps over worlds, and the stiffness may change at every control step (the RL's
@@ -142,8 +144,10 @@ class ImpedanceController:
         limits: ControlLimits = LIMITS,
         peg_body: str = "peg",
         tip_site: str = "peg_tip",
+        compensate_passive: bool = False,
     ):
         self.limits = limits
+        self.compensate_passive = bool(compensate_passive)
         self.body_id = m.body(peg_body).id
         site = m.site(tip_site)
         if site.bodyid[0] != self.body_id:
@@ -205,6 +209,8 @@ class ImpedanceController:
         NT = jnp.eye(J.shape[1], dtype=J.dtype) - J_loc.T @ Jbar.T
         tau0 = p.null_gains[0] * (p.q_null - q) - p.null_gains[1] * qvel
         tau = tau_task + d.qfrc_bias[self.dadr] + NT @ tau0
+        if self.compensate_passive:
+            tau = tau - d.qfrc_passive[self.dadr]
         tau = jnp.clip(tau, self.ctrl_lo, self.ctrl_hi)
         return ImpedanceOutput(tau=tau, wrench=w, wrench_raw=w_raw, x_C=x_C, err=err)
 

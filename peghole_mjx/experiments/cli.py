@@ -44,6 +44,11 @@ def add_parser(subparsers) -> None:
         default=None,
         help="collision representation (default: rect edges, dual mesh)",
     )
+    w.add_argument(
+        "--compensate-joint-damping",
+        action="store_true",
+        help="the law cancels the arm's joint damping (default off: the committed sweeps)",
+    )
     w.add_argument("--out", required=True, type=Path, help="output folder (resumable)")
     w.set_defaults(func=run_sweep)
 
@@ -153,7 +158,10 @@ def run_sweep(args: argparse.Namespace) -> int:
         grid=grid,
         seed=args.seed,
         batch_worlds=args.batch_worlds,
-        experiment=ExperimentConfig(representation=args.representation),
+        experiment=ExperimentConfig(
+            representation=args.representation,
+            compensate_joint_damping=args.compensate_joint_damping,
+        ),
     )
     result = sweep.run_sweep(cfg, args.out)
     for f in sweep.write_figures(result, args.out):

@@ -124,6 +124,9 @@ class ExperimentConfig:
     sim: SimOptions | None = None
     #: collision representation (None: :data:`REPRESENTATION` of the geometry)
     representation: str | None = None
+    #: the law cancels the arm model's joint damping (``ImpedanceController``'s
+    #: ``compensate_passive``); off in the committed sweeps (docs/compliance.md, "Below 30 N m/rad")
+    compensate_joint_damping: bool = False
 
     def sim_options(self) -> SimOptions:
         """The simulator options in effect: ``sim``, else the project's default options at the
@@ -187,7 +190,7 @@ class Extraction:
         rep = cfg.representation or REPRESENTATION[self.spec.kind]
         m = compile_scene(self.spec, sim=cfg.sim_options(), representation=rep)
         self.m = m
-        self.ctl = ImpedanceController(m)
+        self.ctl = ImpedanceController(m, compensate_passive=cfg.compensate_joint_damping)
         d = mujoco.MjData(m)
         mujoco.mj_resetDataKeyframe(m, d, m.key("inserted").id)
         mujoco.mj_forward(m, d)
