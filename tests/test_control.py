@@ -176,3 +176,20 @@ def test_rotvec_small_and_large_angles():
         c, s = np.cos(a), np.sin(a)
         R = jnp.asarray([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
         assert np.allclose(rotvec_from_mat(R), [0, 0, a], rtol=1e-4, atol=1e-9)
+
+
+def test_compensate_passive_cancels_the_joint_damping(rig):
+    """With ``compensate_passive`` the law adds exactly ``dof_damping * qvel`` per arm joint (the
+    model's passive joint force), so the arm's damping no longer loads a soft spring."""
+    m, ctl, mx, dx0, q0 = rig
+    comp = ImpedanceController(m, compensate_passive=True)
+    qvel = np.zeros(m.nv)
+    qvel[ctl.dadr] = np.linspace(-0.05, 0.05, len(ctl.dadr))
+    dx = mjx.forward(mx, dx0.replace(qvel=jnp.asarray(qvel, dx0.qvel.dtype)))
+    x0, R0 = ctl.centre_pose(dx, jnp.asarray(L_C))
+    params = make_params(L_C, q0, stiffness=[300.0] * 3 + [3.0] * 3)
+    target = Target(x0, R0, jnp.zeros(3))
+    tau0, tau1 = (np.asarray(c(mx, dx, target, params).tau) for c in (ctl, comp))
+    expected = m.dof_damping[ctl.dadr] * qvel[ctl.dadr]
+    assert np.abs(expected).max() > 1e-3  # the model has joint damping to cancel
+    np.testing.assert_allclose(tau1 - tau0, expected, atol=1e-5)
