@@ -49,6 +49,11 @@ def add_parser(subparsers) -> None:
         action="store_true",
         help="the law cancels the arm's joint damping (default off: the committed sweeps)",
     )
+    w.add_argument(
+        "--fix-cone-hessian",
+        action="store_true",
+        help="patch MJX's elliptic-cone Newton Hessian (peghole_mjx/mjx_fixes.py; default off)",
+    )
     w.add_argument("--out", required=True, type=Path, help="output folder (resumable)")
     w.set_defaults(func=run_sweep)
 
@@ -161,6 +166,7 @@ def run_sweep(args: argparse.Namespace) -> int:
         experiment=ExperimentConfig(
             representation=args.representation,
             compensate_joint_damping=args.compensate_joint_damping,
+            fix_cone_hessian=args.fix_cone_hessian,
         ),
     )
     result = sweep.run_sweep(cfg, args.out)

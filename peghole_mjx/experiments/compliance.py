@@ -40,6 +40,7 @@ from peghole_mjx.control import GAINS, ImpedanceController, Target, make_params
 from peghole_mjx.errors import UserInputError
 from peghole_mjx.geometry.mjcf import SimOptions, compile_scene
 from peghole_mjx.geometry.specs import MM, PRESETS
+from peghole_mjx.mjx_fixes import apply_cone_hessian_fix
 
 #: thesis values to compare with (Sec 3.5, R1): reductions of the mean peak extraction force
 THESIS = {
@@ -127,6 +128,9 @@ class ExperimentConfig:
     #: the law cancels the arm model's joint damping (``ImpedanceController``'s
     #: ``compensate_passive``); off in the committed sweeps (docs/compliance.md, "Below 30 N m/rad")
     compensate_joint_damping: bool = False
+    #: patch MJX's elliptic-cone Newton Hessian (:mod:`peghole_mjx.mjx_fixes`); off in the
+    #: committed sweeps
+    fix_cone_hessian: bool = False
 
     def sim_options(self) -> SimOptions:
         """The simulator options in effect: ``sim``, else the project's default options at the
@@ -188,6 +192,8 @@ class Extraction:
             self.spec = dataclasses.replace(self.spec, friction=float(mu))
         self.mu = float(self.spec.friction)
         rep = cfg.representation or REPRESENTATION[self.spec.kind]
+        if cfg.fix_cone_hessian:
+            apply_cone_hessian_fix()
         m = compile_scene(self.spec, sim=cfg.sim_options(), representation=rep)
         self.m = m
         self.ctl = ImpedanceController(m, compensate_passive=cfg.compensate_joint_damping)

@@ -1,0 +1,68 @@
+"""Opt-in fix of MJX-JAX's elliptic-cone Newton Hessian (a private MJX function, patched).
+
+MJX's ``solver._update_constraint`` builds the Hessian of each contact in the cone's middle zone
+with the rank-one term ``mu N / T^3 * u u^T`` and clamps ``T^3`` on its own to ``mjMINVAL``
+(1e-15) while ``T`` and ``N`` stay unclamped. For a nearly sticking contact (tangential residual
+``T`` < 1e-5, common in a slow quasi-static pull) the term is then suppressed by up to 1e9 and the
+Hessian can lose positive definiteness; the Newton step's Cholesky factor then returns NaN. The
+same clamp was found and removed in MuJoCo Warp (google-deepmind/mujoco_warp pull request 1660,
+2026-09, "Fix indefinite elliptic cone Hessians near the apex"), whose code notes it follows
+MJX. The fix writes the term as ``(mu N / T) * (u / T)(u / T)^T``: the same value wherever
+``T^3`` > 1e-15, no separate clamp below it.
+
+Evidence in this project (benchmarks/results/low_stiffness_check.json, rect-2 at
+K_theta 3 N m/rad): a world that ended in NaN with MJX as shipped finished with the fix; the
+other world of the batch moved by 0.3 %. It is off by default (the committed results and
+policies were computed without it) and switched on by
+``ExperimentConfig.fix_cone_hessian`` / ``peghole experiment sweep --fix-cone-hessian``.
+"""
+
+from __future__ import annotations
+
+import inspect
+
+from peghole_mjx._mjx import mjx  # noqa: F401  (imports mujoco.mjx quietly first)
+
+_OLD = """      ttt = jp.maximum(t * t * t, mujoco.mjMINVAL)
+      h = jax.vmap(lambda x, y: x * jp.outer(y, y.T))(mu * n / ttt, u)"""
+_NEW = """      h = jax.vmap(lambda x, y: x * jp.outer(y, y.T))(mu * n / t, u / t[:, None])"""
+
+_state: dict[str, object] = {}
+
+
+def cone_hessian_fix_applied() -> bool:
+    """Whether :func:`apply_cone_hessian_fix` has patched this process's MJX."""
+    return "patched" in _state
+
+
+def apply_cone_hessian_fix() -> None:
+    """Patch ``mujoco.mjx._src.solver._update_constraint`` in this process (idempotent).
+
+    Functions jitted before the call keep the shipped solver. Raises ``RuntimeError`` when the
+    installed MJX's source does not contain the expected lines (another MJX version).
+    """
+    if cone_hessian_fix_applied():
+        return
+    from mujoco.mjx._src import solver
+
+    src = inspect.getsource(solver._update_constraint)
+    if _OLD not in src:
+        raise RuntimeError(
+            "the cone-Hessian fix does not apply to this mujoco-mjx version "
+            "(solver._update_constraint changed); run without it"
+        )
+    namespace = dict(solver.__dict__)
+    exec(compile(src.replace(_OLD, _NEW), solver.__file__, "exec"), namespace)
+    _state["original"] = solver._update_constraint
+    _state["patched"] = namespace["_update_constraint"]
+    solver._update_constraint = namespace["_update_constraint"]
+
+
+def remove_cone_hessian_fix() -> None:
+    """Restore MJX's shipped function (for tests)."""
+    if not cone_hessian_fix_applied():
+        return
+    from mujoco.mjx._src import solver
+
+    solver._update_constraint = _state.pop("original")
+    _state.pop("patched")
