@@ -12,14 +12,17 @@ MJX. The fix writes the term as ``(mu N / T) * (u / T)(u / T)^T``: the same valu
 
 Evidence in this project (benchmarks/results/low_stiffness_check.json, rect-2 at
 K_theta 3 N m/rad): a world that ended in NaN with MJX as shipped finished with the fix; the
-other world of the batch moved by 0.3 %. It is off by default (the committed results and
-policies were computed without it) and switched on by
-``ExperimentConfig.fix_cone_hessian`` / ``peghole experiment sweep --fix-cone-hessian``.
+other world of the batch moved by 0.3 %. The compliance experiment traces its
+functions inside :func:`cone_hessian_fix` (``ExperimentConfig.fix_cone_hessian``, on by default;
+``peghole experiment sweep --no-fix-cone-hessian`` turns it off); nothing else in the package
+uses it, so the envs and the committed policies run MJX as shipped.
 """
 
 from __future__ import annotations
 
+import contextlib
 import inspect
+from collections.abc import Iterator
 
 from peghole_mjx._mjx import mjx  # noqa: F401  (imports mujoco.mjx quietly first)
 
@@ -59,10 +62,24 @@ def apply_cone_hessian_fix() -> None:
 
 
 def remove_cone_hessian_fix() -> None:
-    """Restore MJX's shipped function (for tests)."""
+    """Restore MJX's shipped function."""
     if not cone_hessian_fix_applied():
         return
     from mujoco.mjx._src import solver
 
     solver._update_constraint = _state.pop("original")
     _state.pop("patched")
+
+
+@contextlib.contextmanager
+def cone_hessian_fix(enabled: bool = True) -> Iterator[None]:
+    """Within the block, MJX functions traced for the first time use the fixed Hessian (a jitted
+    function keeps the solver it was traced with); the previous state is restored after."""
+    if not enabled or cone_hessian_fix_applied():
+        yield
+        return
+    apply_cone_hessian_fix()
+    try:
+        yield
+    finally:
+        remove_cone_hessian_fix()

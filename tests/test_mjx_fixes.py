@@ -54,3 +54,14 @@ def test_fix_refuses_another_mjx_source(monkeypatch):
     with pytest.raises(RuntimeError, match="does not apply to this mujoco-mjx version"):
         mjx_fixes.apply_cone_hessian_fix()
     assert not mjx_fixes.cone_hessian_fix_applied()
+
+
+def test_context_restores_the_shipped_solver():
+    from mujoco.mjx._src import solver
+
+    shipped = solver._update_constraint
+    with mjx_fixes.cone_hessian_fix():
+        assert solver._update_constraint is not shipped
+    assert solver._update_constraint is shipped
+    with mjx_fixes.cone_hessian_fix(enabled=False):
+        assert solver._update_constraint is shipped

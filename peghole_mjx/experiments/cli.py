@@ -46,13 +46,15 @@ def add_parser(subparsers) -> None:
     )
     w.add_argument(
         "--compensate-joint-damping",
-        action="store_true",
-        help="the law cancels the arm's joint damping (default off: the committed sweeps)",
+        action=argparse.BooleanOptionalAction,
+        default=True,
+        help="the law cancels the arm's joint damping (default on)",
     )
     w.add_argument(
         "--fix-cone-hessian",
-        action="store_true",
-        help="patch MJX's elliptic-cone Newton Hessian (peghole_mjx/mjx_fixes.py; default off)",
+        action=argparse.BooleanOptionalAction,
+        default=True,
+        help="fixed MJX elliptic-cone Newton Hessian (peghole_mjx/mjx_fixes.py; default on)",
     )
     w.add_argument("--out", required=True, type=Path, help="output folder (resumable)")
     w.set_defaults(func=run_sweep)

@@ -40,7 +40,7 @@ from peghole_mjx.control import GAINS, ImpedanceController, Target, make_params
 from peghole_mjx.errors import UserInputError
 from peghole_mjx.geometry.mjcf import SimOptions, compile_scene
 from peghole_mjx.geometry.specs import MM, PRESETS
-from peghole_mjx.mjx_fixes import apply_cone_hessian_fix
+from peghole_mjx.mjx_fixes import cone_hessian_fix
 
 #: thesis values to compare with (Sec 3.5, R1): reductions of the mean peak extraction force
 THESIS = {
@@ -126,11 +126,13 @@ class ExperimentConfig:
     #: collision representation (None: :data:`REPRESENTATION` of the geometry)
     representation: str | None = None
     #: the law cancels the arm model's joint damping (``ImpedanceController``'s
-    #: ``compensate_passive``); off in the committed sweeps (docs/compliance.md, "Below 30 N m/rad")
-    compensate_joint_damping: bool = False
-    #: patch MJX's elliptic-cone Newton Hessian (:mod:`peghole_mjx.mjx_fixes`); off in the
-    #: committed sweeps
-    fix_cone_hessian: bool = False
+    #: ``compensate_passive``): uncancelled, it tilts a 3 N m/rad spring by more than beta0
+    #: (benchmarks/results/low_stiffness_check.json; docs/compliance.md, "Soft rotational springs")
+    compensate_joint_damping: bool = True
+    #: trace the experiment with MJX's elliptic-cone Newton Hessian fixed
+    #: (:mod:`peghole_mjx.mjx_fixes`): the shipped one turned 13 of 48 worlds to NaN at
+    #: K_theta 3 N m/rad, the fixed one none
+    fix_cone_hessian: bool = True
 
     def sim_options(self) -> SimOptions:
         """The simulator options in effect: ``sim``, else the project's default options at the
@@ -192,8 +194,6 @@ class Extraction:
             self.spec = dataclasses.replace(self.spec, friction=float(mu))
         self.mu = float(self.spec.friction)
         rep = cfg.representation or REPRESENTATION[self.spec.kind]
-        if cfg.fix_cone_hessian:
-            apply_cone_hessian_fix()
         m = compile_scene(self.spec, sim=cfg.sim_options(), representation=rep)
         self.m = m
         self.ctl = ImpedanceController(m, compensate_passive=cfg.compensate_joint_damping)
@@ -377,7 +377,8 @@ class Extraction:
         for g in groups:
             grec = []
             for c in range(self.n_chunks):
-                g, rec = self._chunk(g, jnp.asarray(c * self.cfg.chunk_steps))
+                with cone_hessian_fix(self.cfg.fix_cone_hessian):
+                    g, rec = self._chunk(g, jnp.asarray(c * self.cfg.chunk_steps))
                 grec.append(np.asarray(rec))
                 bar.update()
             recs.append(
