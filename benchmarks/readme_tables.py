@@ -243,8 +243,8 @@ def contact_check() -> str:
     )
 
 
-def _sweep_rows(geom: str) -> list[str]:
-    d = json.loads((RESULTS / f"compliance_sweep_{geom}.json").read_text())
+def _sweep_rows(path: Path) -> list[str]:
+    d = json.loads(path.read_text())
 
     def red(x):
         if x["value"] is None:
@@ -267,8 +267,7 @@ def _sweep_rows(geom: str) -> list[str]:
     return out
 
 
-def compliance_sweep() -> str:
-    """The regime sweep: simulated reductions (95 % CI) beside the quasi-static oracle's."""
+def _sweep_table(suffix: str) -> str:
     head = [
         "| preset | K_theta N m/rad | beta0 deg | mu | K_lat L_C,top^2 / K_theta | "
         "mean peak F_z N: tip / centre / top | tip vs top % [95 % CI] (R1: 77.1) | oracle | "
@@ -278,16 +277,50 @@ def compliance_sweep() -> str:
     lines = list(head)
     notes = []
     for geom in ("rect", "dual"):
-        path = RESULTS / f"compliance_sweep_{geom}.json"
+        path = RESULTS / f"compliance_sweep_{geom}{suffix}.json"
         if not path.exists():
             continue
         d = json.loads(path.read_text())
-        lines += _sweep_rows(geom)
+        lines += _sweep_rows(path)
         notes.append(
             f"{geom}: {sum(c['n_worlds'] for c in d['cells'])} worlds, {d['device']}, "
             f"{d['date'][:10]}, {d['runtime_s'] / 60:.0f} min"
         )
     return "\n".join([*lines, "", "Runs: " + "; ".join(notes) + "."])
+
+
+def compliance_sweep() -> str:
+    """The regime sweep: simulated reductions (95 % CI) beside the quasi-static oracle's."""
+    return _sweep_table("")
+
+
+def compliance_sweep_envs_law() -> str:
+    """The same sweep run with the envs' law and MJX as shipped (``--no-compensate-joint-damping
+    --no-fix-cone-hessian``)."""
+    return _sweep_table("_envs_law")
+
+
+def low_stiffness_check() -> str:
+    """Why K_theta = 3 N m/rad departs from the oracle (benchmarks/low_stiffness_check.py)."""
+    d = json.loads((RESULTS / "low_stiffness_check.json").read_text())
+    c = d["cell"]
+    lines = [
+        f"{c['preset']}, K_theta {c['k_rot_Nm_rad']:g} N m/rad, K_lat {c['k_lat_N_m']:g} N/m, "
+        f"delta0 {c['delta0_mm']:g} mm, beta0 {c['beta0_deg']:+g} deg, mu {c['mu']:g}, "
+        f"L_C {d['L_C_mm']:g} mm, {d['repeats']} worlds; {d['device']}, {d['date'][:10]}.",
+        "",
+        "| variant | late peak F_z N (per world) | oracle N | both walls loaded in two-point "
+        "windows | NaN worlds |",
+        "|---|---|---|---|---|",
+    ]
+    for r in d["rows"]:
+        pk = " / ".join("NaN" if v is None or v != v else f"{v:.3f}" for v in r["peak_fz_late_N"])
+        orc = " / ".join(f"{v:.3f}" for v in r["oracle_peak_fz_late_N"])
+        both = " / ".join(
+            "-" if v is None else f"{v:.2f}" for v in r["both_walls_frac_in_two_point"]
+        )
+        lines.append(f"| {r['variant']} | {pk} | {orc} | {both} | {sum(r['nan'])} |")
+    return "\n".join(lines)
 
 
 def _cell_name(c: dict) -> str:
@@ -586,6 +619,8 @@ TABLES = {
     "contact_check": contact_check,
     "compliance_sweep": compliance_sweep,
     "compliance_findings": compliance_findings,
+    "compliance_sweep_envs_law": compliance_sweep_envs_law,
+    "low_stiffness_check": low_stiffness_check,
     "throughput": throughput,
     "roofline": roofline,
     "cost": cost,
@@ -602,6 +637,8 @@ TABLE_FILES = {
     "contact_check": "docs/compliance.md",
     "compliance_sweep": "docs/compliance.md",
     "compliance_findings": "docs/compliance.md",
+    "compliance_sweep_envs_law": "docs/compliance.md",
+    "low_stiffness_check": "docs/compliance.md",
     "env_rollouts": "docs/envs.md",
     "pretrained": "docs/results.md",
     "force_sources": "docs/results.md",
