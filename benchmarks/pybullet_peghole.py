@@ -6,7 +6,7 @@ its convex pieces (:func:`peghole_mjx.geometry.parts.hole_parts` / ``peg_parts``
 boxes and a floor box, the peg one box), the env config (action scales, stiffness, jamming,
 success margin, episode length, randomisation: ``peghole_mjx.envs.get_default_config``), the
 limits and gains (:mod:`peghole_mjx.control.limits`), the reward terms and weights
-(:func:`peghole_mjx.envs.base.reward_terms`, Table 4.1).
+(:func:`peghole_mjx.envs.reward.reward_terms`, Table 4.1).
 
 Robot: PyBullet's bundled ``kuka_iiwa/model.urdf`` (LBR iiwa 14 R820) with three links added
 by fixed joints, as on the MJCF robot: the F/T sensor (0.35 kg, 37.5 mm, on the media flange
@@ -45,7 +45,7 @@ import numpy as np
 import peghole_mjx._mjx  # noqa: F401  (quiet mjx import, XLA CPU flag)
 from peghole_mjx.control.limits import GAINS, LIMITS
 from peghole_mjx.envs import get_default_config
-from peghole_mjx.envs.base import REWARD_WEIGHTS, reward_terms
+from peghole_mjx.envs.reward import REWARD_WEIGHTS, reward_terms
 from peghole_mjx.geometry.mjcf import ACTUATORS, ROBOT_XML, TOOL_DOWN_MAT
 from peghole_mjx.geometry.parts import hole_parts, peg_parts
 from peghole_mjx.geometry.specs import MM, RectSpec, get_preset
