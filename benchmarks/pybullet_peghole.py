@@ -43,7 +43,6 @@ from pathlib import Path
 import numpy as np
 
 import peghole_mjx._mjx  # noqa: F401  (quiet mjx import, XLA CPU flag)
-from peghole_mjx.control.limits import GAINS, LIMITS
 from peghole_mjx.envs import get_default_config
 from peghole_mjx.envs.reward import REWARD_WEIGHTS, reward_terms
 from peghole_mjx.geometry.mjcf import ACTUATORS, ROBOT_XML, TOOL_DOWN_MAT
@@ -189,7 +188,7 @@ class PegHoleSim:
         )
         self.zeta = float(s.damping_ratio)
         self.L_C = float(s.compliance_centre_mm) * MM
-        self.null_gains = (GAINS.null_stiffness_Nm_rad, GAINS.null_damping_Nms_rad)
+        self.null_gains = (s.null_stiffness_Nm_rad, s.null_damping_Nms_rad)
         self.L = self.spec.length_mm * MM
         (peg,) = peg_parts(self.spec)
         self.half_len = float(peg.half_size[2])
@@ -390,7 +389,7 @@ class PegHoleSim:
             np.concatenate([ff, np.zeros(3)]),
             self.q_null,
             self.null_gains,
-            LIMITS.max_wrench,
+            (*self.c.limits.max_force_N, *self.c.limits.max_torque_Nm),
             self.ctrl_lo,
             self.ctrl_hi,
         )
@@ -404,7 +403,8 @@ class PegHoleSim:
         dz = a[2] * c.action.max_speed_m_s * c.ctrl_dt
         prev = info["cmd_tip"]
         cmd_tip = prev + H @ np.array([dxy[0], dxy[1], dz])
-        cap = np.asarray(LIMITS.max_force_N)
+        fx, fy, fz = c.limits.max_force_N  # the env's feed-forward caps (envs/extraction.py)
+        cap = np.asarray((min(fx, c.action.max_ff_xy_N), min(fy, c.action.max_ff_xy_N), fz))
         wrench_ff = np.clip(info["wrench_ff"] + a[3:6] * c.action.max_force_step_N, -cap, cap)
         cmd_mat = info["cmd_mat"]
         axis = cmd_mat[:, 2]
