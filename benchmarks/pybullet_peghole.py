@@ -6,7 +6,7 @@ its convex pieces (:func:`peghole_mjx.geometry.parts.hole_parts` / ``peg_parts``
 boxes and a floor box, the peg one box), the env config (action scales, stiffness, jamming,
 success margin, episode length, randomisation: ``peghole_mjx.envs.get_default_config``), the
 limits and gains (:mod:`peghole_mjx.control.limits`), the reward terms and weights
-(:func:`peghole_mjx.envs.base.reward_terms`, Table 4.1).
+(:func:`peghole_mjx.envs.reward.reward_terms`, Table 4.1).
 
 Robot: PyBullet's bundled ``kuka_iiwa/model.urdf`` (LBR iiwa 14 R820) with three links added
 by fixed joints, as on the MJCF robot: the F/T sensor (0.35 kg, 37.5 mm, on the media flange
@@ -43,9 +43,8 @@ from pathlib import Path
 import numpy as np
 
 import peghole_mjx._mjx  # noqa: F401  (quiet mjx import, XLA CPU flag)
-from peghole_mjx.control.limits import GAINS, LIMITS
 from peghole_mjx.envs import get_default_config
-from peghole_mjx.envs.base import REWARD_WEIGHTS, reward_terms
+from peghole_mjx.envs.reward import REWARD_WEIGHTS, reward_terms
 from peghole_mjx.geometry.mjcf import ACTUATORS, ROBOT_XML, TOOL_DOWN_MAT
 from peghole_mjx.geometry.parts import hole_parts, peg_parts
 from peghole_mjx.geometry.specs import MM, RectSpec, get_preset
@@ -189,7 +188,7 @@ class PegHoleSim:
         )
         self.zeta = float(s.damping_ratio)
         self.L_C = float(s.compliance_centre_mm) * MM
-        self.null_gains = (GAINS.null_stiffness_Nm_rad, GAINS.null_damping_Nms_rad)
+        self.null_gains = (s.null_stiffness_Nm_rad, s.null_damping_Nms_rad)
         self.L = self.spec.length_mm * MM
         (peg,) = peg_parts(self.spec)
         self.half_len = float(peg.half_size[2])
@@ -390,7 +389,7 @@ class PegHoleSim:
             np.concatenate([ff, np.zeros(3)]),
             self.q_null,
             self.null_gains,
-            LIMITS.max_wrench,
+            (*self.c.limits.max_force_N, *self.c.limits.max_torque_Nm),
             self.ctrl_lo,
             self.ctrl_hi,
         )
@@ -404,7 +403,8 @@ class PegHoleSim:
         dz = a[2] * c.action.max_speed_m_s * c.ctrl_dt
         prev = info["cmd_tip"]
         cmd_tip = prev + H @ np.array([dxy[0], dxy[1], dz])
-        cap = np.asarray(LIMITS.max_force_N)
+        fx, fy, fz = c.limits.max_force_N  # the env's feed-forward caps (envs/extraction.py)
+        cap = np.asarray((min(fx, c.action.max_ff_xy_N), min(fy, c.action.max_ff_xy_N), fz))
         wrench_ff = np.clip(info["wrench_ff"] + a[3:6] * c.action.max_force_step_N, -cap, cap)
         cmd_mat = info["cmd_mat"]
         axis = cmd_mat[:, 2]

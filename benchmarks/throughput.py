@@ -342,11 +342,11 @@ class CWorlds:
     def __init__(self, env, worlds: int, seed: int = 0, record: bool = False):
         import mujoco
 
-        from peghole_mjx.control import GAINS, LIMITS, ImpedanceController
+        from peghole_mjx.control import ImpedanceController
         from peghole_mjx.geometry.mjcf import TOOL_DOWN_MAT
         from peghole_mjx.geometry.specs import MM
 
-        self.mujoco, self.MM, self.LIMITS = mujoco, MM, LIMITS
+        self.mujoco, self.MM = mujoco, MM
         self.c = env.config
         self.m = env.mj_model
         m = self.m
@@ -359,7 +359,7 @@ class CWorlds:
             [s.k_xy_N_m, s.k_xy_N_m, s.k_z_N_m, s.k_rot_Nm_rad, s.k_rot_Nm_rad, s.k_rot_Nm_rad]
         )
         self.zeta = float(s.damping_ratio)
-        self.null_gains = (GAINS.null_stiffness_Nm_rad, GAINS.null_damping_Nms_rad)
+        self.null_gains = (s.null_stiffness_Nm_rad, s.null_damping_Nms_rad)
         key = m.key("inserted")
         self.key_id = key.id
         self.q_null = np.array(key.qpos)[self.ctl.qadr]
@@ -428,7 +428,7 @@ class CWorlds:
             ff,
             self.q_null,
             self.null_gains,
-            self.LIMITS.max_wrench,
+            (*self.c.limits.max_force_N, *self.c.limits.max_torque_Nm),
             ctl.ctrl_lo,
             ctl.ctrl_hi,
         )
@@ -442,7 +442,8 @@ class CWorlds:
         prev = info["cmd_tip"]
         dxy = a[:2] * c.action.max_step_offset_mm * self.MM
         cmd_tip = prev + H @ np.array([dxy[0], dxy[1], a[2] * c.action.max_speed_m_s * c.ctrl_dt])
-        cap = np.asarray(self.LIMITS.max_force_N)
+        fx, fy, fz = c.limits.max_force_N  # the env's feed-forward caps (envs/extraction.py)
+        cap = np.asarray((min(fx, c.action.max_ff_xy_N), min(fy, c.action.max_ff_xy_N), fz))
         wff = np.clip(info["wrench_ff"] + a[3:6] * c.action.max_force_step_N, -cap, cap)
         cmd_mat = info["cmd_mat"]
         axis = cmd_mat[:, 2]

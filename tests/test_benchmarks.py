@@ -24,7 +24,7 @@ import throughput  # noqa: E402
 
 from peghole_mjx import envs  # noqa: E402
 from peghole_mjx.control import ImpedanceController, Target, make_params  # noqa: E402
-from peghole_mjx.envs.base import REWARD_WEIGHTS  # noqa: E402
+from peghole_mjx.envs.reward import REWARD_WEIGHTS  # noqa: E402
 from peghole_mjx.geometry.mjcf import TOOL_DOWN_MAT  # noqa: E402
 
 EXPECTED_COLUMNS = [

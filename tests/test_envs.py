@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 from peghole_mjx import envs
-from peghole_mjx.envs.base import REWARD_WEIGHTS, reward_terms
+from peghole_mjx.envs.reward import REWARD_WEIGHTS, reward_terms
 from peghole_mjx.envs.rollout import random_policy, rollout, scripted_policy
 from peghole_mjx.errors import UserInputError
 from peghole_mjx.validation import loads as strict_json  # no bare NaN

@@ -487,6 +487,33 @@ def test_evaluate_prints_the_result_before_a_failed_write(
     assert len(fake_evaluate) == 2
 
 
+def test_evaluate_several_checkpoints_share_one_baseline_and_policy_only(
+    tmp_path, capsys, monkeypatch
+):
+    import importlib
+
+    module = importlib.import_module("peghole_mjx.training.evaluate")
+    calls = []
+
+    def fake(checkpoint, episodes, **kw):
+        calls.append((checkpoint, kw["seed"], kw["policy_only"], kw["baselines"]))
+        return {**FAKE_RESULT, "policy_path": checkpoint}
+
+    monkeypatch.setattr(module, "evaluate", fake)
+    out = tmp_path / "ev.json"
+    argv = ["evaluate", "rect", "dual", "--seed", "3", "--json", "--out", out]
+    rc, stdout, _ = peghole(argv, capsys)
+    assert rc == 0
+    res = strict_json(stdout)
+    assert [r["policy_path"] for r in res] == ["rect", "dual"] == [c[0] for c in calls]
+    assert strict_json(out.read_text()) == res
+    assert calls[0][3] is calls[1][3]  # one baseline cache for the whole command
+    assert {c[1:3] for c in calls} == {(3, False)}
+    calls.clear()
+    rc, stdout, _ = peghole(["evaluate", "rect", "--policy-only", "--json"], capsys)
+    assert rc == 0 and isinstance(strict_json(stdout), dict) and calls[0][2] is True
+
+
 # ---------------------------------------------------------------------- 8. models build
 def test_models_build_writes_both_files_or_neither(tmp_path, capsys, monkeypatch):
     out = tmp_path / "scene"

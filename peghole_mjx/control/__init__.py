@@ -9,8 +9,8 @@ from peghole_mjx.control.impedance import (
     force_at_point,
     make_params,
     rate_limit,
-    rotvec_from_mat,
 )
+from peghole_mjx.control.kinematics import rot_from_rotvec, rot_y, rot_z, rotvec_from_mat
 from peghole_mjx.control.limits import GAINS, LIMITS, ControlLimits, ImpedanceGains
 
 __all__ = [
@@ -26,5 +26,8 @@ __all__ = [
     "force_at_point",
     "make_params",
     "rate_limit",
+    "rot_from_rotvec",
+    "rot_y",
+    "rot_z",
     "rotvec_from_mat",
 ]

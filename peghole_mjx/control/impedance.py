@@ -20,7 +20,7 @@ max Cartesian torque [3, 3, 1] N m), and maps it to joint torques::
 ``compensate_passive`` the law also cancels the model's passive joint forces (``- qfrc_passive``:
 the joint damping), as a joint-torque-sensing arm's inner loop does; ``tau`` is clipped to the
 actuator ``ctrlrange`` read from the model. ``J_C`` is the 6 x nv Jacobian of the point ``C``
-on the peg body (``mjx`` ``support.jac``).
+on the peg body (:mod:`peghole_mjx.control.kinematics`).
 
 Everything is a pure function of ``(mjx.Model, mjx.Data, Target, ImpedanceParams)`` pytrees, so
 it jits, vmaps over worlds, and the stiffness may change at every control step (the RL's
@@ -38,8 +38,8 @@ import jax.numpy as jnp
 import mujoco
 import numpy as np
 from mujoco import mjx
-from mujoco.mjx._src import support
 
+from peghole_mjx.control.kinematics import full_inertia, point_jacobian, rotvec_from_mat
 from peghole_mjx.control.limits import GAINS, LIMITS, ControlLimits
 from peghole_mjx.geometry.mjcf import ACTUATORS, JOINTS
 
@@ -109,16 +109,6 @@ def make_params(
     )
 
 
-def rotvec_from_mat(R: jax.Array) -> jax.Array:
-    """Rotation vector (axis * angle, rad) of a rotation matrix; smooth at zero angle."""
-    s = 0.5 * jnp.array([R[2, 1] - R[1, 2], R[0, 2] - R[2, 0], R[1, 0] - R[0, 1]])
-    sin = jnp.linalg.norm(s)
-    cos = 0.5 * (jnp.trace(R) - 1.0)
-    angle = jnp.arctan2(sin, cos)
-    scale = jnp.where(sin > 1e-9, angle / jnp.maximum(sin, 1e-9), 1.0)
-    return s * scale
-
-
 def clip_wrench(w: jax.Array, limits: ControlLimits = LIMITS) -> jax.Array:
     """Per-axis clip of a compliance-frame wrench to the thesis's force/torque caps."""
     cap = jnp.asarray(limits.max_wrench, w.dtype)
@@ -182,7 +172,7 @@ class ImpedanceController:
     ) -> ImpedanceOutput:
         """Joint torques of the impedance law (see the module docstring)."""
         x_C, R = self.centre_pose(d, p.L_C)
-        jacp, jacr = support.jac(m, d, x_C, self.body_id)  # (nv, 3) each
+        jacp, jacr = point_jacobian(m, d, x_C, self.body_id)  # (nv, 3) each
         J = jnp.concatenate([jacp.T, jacr.T])[:, self.dadr]  # (6, 7)
         qvel = d.qvel[self.dadr]
         q = d.qpos[self.qadr]
@@ -195,7 +185,7 @@ class ImpedanceController:
         v_loc = J_loc @ qvel
         v_des = jnp.concatenate([Rc.T @ target.vel, jnp.zeros(3, J.dtype)])
 
-        Mfull = support.full_m(m, d)[jnp.ix_(self.dadr, self.dadr)]
+        Mfull = full_inertia(m, d)[jnp.ix_(self.dadr, self.dadr)]
         Minv = jnp.linalg.inv(Mfull)
         Lam_inv = J_loc @ Minv @ J_loc.T
         Lam = jnp.linalg.inv(Lam_inv + 1e-9 * jnp.eye(6, dtype=J.dtype))

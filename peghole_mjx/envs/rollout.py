@@ -16,7 +16,7 @@ import functools
 import sys
 import time
 from collections.abc import Callable
-from dataclasses import asdict, dataclass
+from dataclasses import asdict, dataclass, make_dataclass
 from pathlib import Path
 from typing import Any
 
@@ -24,7 +24,14 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from peghole_mjx.envs.base import PegHoleEnv
+from peghole_mjx.envs.extraction import PegHoleEnv
+from peghole_mjx.envs.metrics import (
+    EPISODE_RECORD,
+    STATS,
+    accumulate_return,
+    summarize,
+    zero_returns,
+)
 
 Policy = Callable[[jax.Array, jax.Array], jax.Array]
 
@@ -55,25 +62,14 @@ def random_policy(env: PegHoleEnv) -> Policy:
     return lambda obs, rng: jax.random.uniform(rng, (n,), minval=-1.0, maxval=1.0)
 
 
-@dataclass
-class RolloutSummary:
-    """The keys of ``peghole envs rollout --json``."""
-
-    success_rate: float
-    mean_time_s: float  # mean extraction time of the successful episodes
-    mean_fz_N: float  # mean over episodes of the per-episode mean |F_z|
-    peak_fz_N: float  # mean over episodes of the per-episode peak |F_z|
-    mean_fxy_N: float  # mean over episodes of the per-episode mean |F_xy|
-    episodes: int
-    nan_worlds: int
-    overflow_worlds: int  # MuJoCo Warp dropped contacts (impl="warp" only)
-    jammed: int
-    timeouts: int
-    mean_return: float  # undiscounted episode return (eq 4.4 rewards summed)
-    mean_discounted_return: float  # sum_i gamma^i r_i (eq 4.1 with E9's exponent)
-
-    def as_dict(self) -> dict:
-        return asdict(self)
+#: the keys of ``peghole envs rollout --json`` and of an evaluation's ``policy`` / ``baseline``:
+#: the episode statistics of :data:`peghole_mjx.envs.metrics.STATS` (their docs there)
+RolloutSummary = make_dataclass(
+    "RolloutSummary",
+    [(s.name, int if s.kind in ("episodes", "count") else float) for s in STATS],
+    namespace={"as_dict": lambda self: asdict(self)},
+)
+RolloutSummary.__doc__ = "The episode statistics of a rollout (peghole_mjx.envs.metrics.STATS)."
 
 
 @dataclass
@@ -95,39 +91,7 @@ class RolloutResult:
         return self.physics_steps / max(self.run_s, 1e-9)
 
     def summary(self) -> RolloutSummary:
-        e = self.per_episode
-        ok = e["success"] > 0
-        return RolloutSummary(
-            success_rate=float(ok.mean()),
-            mean_time_s=float(e["extraction_time_s"][ok].mean()) if ok.any() else float("nan"),
-            mean_fz_N=float(e["mean_fz_N"].mean()),
-            peak_fz_N=float(e["peak_fz_N"].mean()),
-            mean_fxy_N=float(e["mean_fxy_N"].mean()),
-            episodes=len(ok),
-            nan_worlds=int((e["nan"] > 0).sum()),
-            overflow_worlds=int((e["overflow"] > 0).sum()),
-            jammed=int((e["jammed"] > 0).sum()),
-            timeouts=int(
-                (
-                    (e["failure"] > 0) & (e["jammed"] == 0) & (e["nan"] == 0) & (e["overflow"] == 0)
-                ).sum()
-            ),
-            mean_return=float(e["return"].mean()),
-            mean_discounted_return=float(e["discounted_return"].mean()),
-        )
-
-
-_KEYS = (
-    "success",
-    "failure",
-    "jammed",
-    "nan",
-    "overflow",
-    "extraction_time_s",
-    "mean_fz_N",
-    "peak_fz_N",
-    "mean_fxy_N",
-)
+        return RolloutSummary(**summarize(self.per_episode))
 
 
 @functools.lru_cache(maxsize=16)
@@ -141,8 +105,8 @@ def make_runner(env: PegHoleEnv, policy: Callable, chunk: int, with_params: bool
     def reset(rngs):
         n = rngs.shape[0]
         states = jax.vmap(env.reset)(rngs)
-        record = {k: jnp.zeros(n) for k in (*_KEYS, "return", "discounted_return")}
-        acc = {"return": jnp.zeros(n), "discounted_return": jnp.zeros(n), "gamma_i": jnp.ones(n)}
+        record = {k: jnp.zeros(n) for k in EPISODE_RECORD}
+        acc = zero_returns(n)
         finished = jnp.zeros(n, bool)
         return states, (record, acc), finished
 
@@ -163,15 +127,9 @@ def make_runner(env: PegHoleEnv, policy: Callable, chunk: int, with_params: bool
 
         states = jax.tree.map(keep, new, states)
         r = jnp.where(finished, 0.0, new.reward)
-        acc = {
-            "return": acc["return"] + r,
-            "discounted_return": acc["discounted_return"] + acc["gamma_i"] * r,
-            "gamma_i": acc["gamma_i"] * gamma,
-        }
-        record = {
-            **{k: jnp.where(done_now, new.metrics[k], record[k]) for k in _KEYS},
-            **{k: jnp.where(done_now, acc[k], record[k]) for k in ("return", "discounted_return")},
-        }
+        acc = accumulate_return(acc, r, gamma)
+        ended = {**new.metrics, **acc}
+        record = {k: jnp.where(done_now, ended[k], record[k]) for k in EPISODE_RECORD}
         return (states, (record, acc), finished | done_now, rng, params), None
 
     def run(states, record, finished, rng, params):

@@ -36,7 +36,7 @@ from mujoco import mjx
 from scipy.signal import savgol_filter
 from tqdm import tqdm
 
-from peghole_mjx.control import GAINS, ImpedanceController, Target, make_params
+from peghole_mjx.control import GAINS, ImpedanceController, Target, make_params, rot_y
 from peghole_mjx.errors import UserInputError
 from peghole_mjx.geometry.mjcf import SimOptions, compile_scene
 from peghole_mjx.geometry.specs import MM, PRESETS
@@ -177,11 +177,6 @@ def world_table(cfg: ExperimentConfig, preset: str) -> dict[str, np.ndarray]:
     }
 
 
-def _rot_y(a):
-    c, s = jnp.cos(a), jnp.sin(a)
-    return jnp.array([[c, 0.0, s], [0.0, 1.0, 0.0], [-s, 0.0, c]])
-
-
 class Extraction:
     """One preset's compiled scene (at friction ``mu``), controller and jitted chunk function."""
 
@@ -279,7 +274,7 @@ class Extraction:
         a = jnp.clip(t / jnp.maximum(self.n_settle, 1), 0.0, 1.0)
         cmd = target._replace(
             pos=target.pos + a * err[0] * jnp.array([1.0, 0.0, 0.0]),
-            mat=_rot_y(a * err[1]) @ target.mat,
+            mat=rot_y(a * err[1]) @ target.mat,
         )
         dx_c, out = self.ctl.apply(self.mx, dx, cmd, params)
         new = mjx.step(self.mx, dx_c)

@@ -68,9 +68,15 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
         "method) on the same randomised episodes and reports success_rate, mean_time_s, "
         "mean_fz_N, peak_fz_N, mean_fxy_N for each, and the force reduction beside the "
         "thesis's R3-R5. CHECKPOINT: a policy directory, a training run directory, or a "
-        "pretrained name (rect, dual).",
+        "pretrained name (rect, dual); several are evaluated on the same episodes (the "
+        "baseline run once per env), and --json / --out then give a list.",
     )
-    e.add_argument("checkpoint")
+    e.add_argument("checkpoint", nargs="+")
+    e.add_argument(
+        "--policy-only",
+        action="store_true",
+        help="skip the scripted baseline (no force reduction)",
+    )
     e.add_argument("--episodes", type=arg("episodes"), default=256)
     e.add_argument("--seed", type=arg("seed"), default=0)
     e.add_argument("--json", action="store_true", help="print one JSON object")
@@ -171,18 +177,25 @@ def cmd_evaluate(args: argparse.Namespace) -> int:
 
     if args.out:  # checked before the evaluation, written after the result is printed
         fileio.check_out_file(args.out)
-    res = evaluate(
-        args.checkpoint,
-        args.episodes,
-        seed=args.seed,
-        progress=not args.json,
-        batch=args.batch,
-        parts_dir=args.parts,
-    )
+    baselines: dict = {}
+    results = []
+    for checkpoint in args.checkpoint:
+        res = evaluate(
+            checkpoint,
+            args.episodes,
+            seed=args.seed,
+            progress=not args.json,
+            batch=args.batch,
+            parts_dir=args.parts,
+            policy_only=args.policy_only,
+            baselines=baselines,
+        )
+        results.append(res)
+        if not args.json:
+            _print_evaluation(res)
+    res = results[0] if len(results) == 1 else results
     if args.json:
         print(dumps(res), flush=True)
-    else:
-        _print_evaluation(res)
     if args.out:
         fileio.write_text(args.out, dumps(res, indent=2) + "\n")
     return 0
@@ -190,7 +203,10 @@ def cmd_evaluate(args: argparse.Namespace) -> int:
 
 def _print_evaluation(res: dict) -> None:
     p, b, th = res["policy"], res["baseline"], res["thesis"]
-    print(f"{res['env']} ({res['preset']}), {res['episodes']} episodes, seed {res['seed']}")
+    print(
+        f"{res['policy_path']}: {res['env']} ({res['preset']}), {res['episodes']} episodes, "
+        f"seed {res['seed']}"
+    )
     print(f"{'':22s}{'policy':>10s}{'baseline':>10s}{'thesis RL':>11s}")
     rows = [
         ("success rate", "success_rate", "{:.3f}", th["success_rate"]),
@@ -201,8 +217,11 @@ def _print_evaluation(res: dict) -> None:
     ]
     for name, key, fmt, thesis in rows:
         t = "" if thesis is None else fmt.format(thesis)
-        print(f"{name:22s}{fmt.format(p[key]):>10s}{fmt.format(b[key]):>10s}{t:>11s}")
+        base = "-" if b is None else fmt.format(b[key])
+        print(f"{name:22s}{fmt.format(p[key]):>10s}{base:>10s}{t:>11s}")
     red = res["force_reduction_pct"]
+    if red is None:
+        return
     red_s = "nan" if math.isnan(red) else f"{red:.1f} %"
     print(
         f"force reduction vs baseline: {red_s} (thesis R3: {th['force_reduction_pct']} %)",

@@ -125,9 +125,14 @@ def evaluate(
     env=None,
     batch: int | None = None,
     parts_dir: str | Path | None = None,
+    policy_only: bool = False,
+    baselines: dict[str, dict[str, Any]] | None = None,
 ) -> dict[str, Any]:
     """``{"policy", "baseline", "force_reduction_pct", "episodes", ...}`` (see module doc).
 
+    ``policy_only``: skip the baseline (``baseline`` and ``force_reduction_pct`` are None).
+    ``baselines``: baseline summaries by episodes key (filled here), so several policies
+    evaluated on the same episodes and env run the baseline once.
     ``env``: an already built env of the policy's config (reuses its compiled rollouts).
     ``batch``: worlds run at once (default: all ``episodes``). ``parts_dir``: finished slices
     of ``batch`` episodes are saved there, and a rerun with the same policy, env, seed and
@@ -145,12 +150,20 @@ def evaluate(
     res_p = rollout(
         env, bundle.policy_fn(), episodes, params=bundle.params, parts_dir=parts[0], **kw
     )
-    res_b = rollout(env, scripted_policy(env), episodes, parts_dir=parts[1], **kw)
-    pol, base = res_p.summary().as_dict(), res_b.summary().as_dict()
+    pol, base = res_p.summary().as_dict(), None
+    if not policy_only:
+        key = json.dumps(
+            [_config_key(env, BASELINE_IGNORED_CONFIG), seed, episodes, batch or episodes]
+        )
+        baselines = {} if baselines is None else baselines
+        if key not in baselines:
+            res_b = rollout(env, scripted_policy(env), episodes, parts_dir=parts[1], **kw)
+            baselines[key] = res_b.summary().as_dict()
+        base = baselines[key]
     return {
         "policy": pol,
         "baseline": base,
-        "force_reduction_pct": force_reduction_pct(pol, base),
+        "force_reduction_pct": None if base is None else force_reduction_pct(pol, base),
         "episodes": episodes,
         "batch": batch or episodes,  # episodes per slice: numbers differ ~2 % between batches
         "seed": seed,

@@ -38,6 +38,7 @@ import jax
 import numpy as np
 
 from peghole_mjx import fileio
+from peghole_mjx.envs.metrics import EVAL_STATS, TOTAL_KEYS, TRAIN_STATS, summarize_totals
 from peghole_mjx.errors import CorruptFileError, UserInputError
 from peghole_mjx.policies import make_policy_fn, save_policy
 from peghole_mjx.provenance import provenance
@@ -45,32 +46,15 @@ from peghole_mjx.training import checkpoints
 from peghole_mjx.training.config import TrainConfig
 from peghole_mjx.training.lock import RunLock
 from peghole_mjx.training.plots import read_metrics
-from peghole_mjx.training.sac import EPISODE_KEYS, SACTrainer
+from peghole_mjx.training.sac import SACTrainer
 
 METRIC_COLUMNS = (
     "step",
     "wall_s",
     "train_wall_s",
     "sps",
-    "eval/episodes",
-    "eval/success_rate",
-    "eval/mean_time_s",
-    "eval/mean_fz_N",
-    "eval/peak_fz_N",
-    "eval/mean_fxy_N",
-    "eval/mean_return",
-    "eval/mean_discounted_return",
-    "eval/nan_worlds",
-    "eval/jammed",
-    "train/episodes",
-    "train/success_rate",
-    "train/mean_time_s",
-    "train/mean_fz_N",
-    "train/peak_fz_N",
-    "train/mean_fxy_N",
-    "train/mean_return",
-    "train/mean_discounted_return",
-    "train/nan_worlds",
+    *(f"eval/{k}" for k in EVAL_STATS),
+    *(f"train/{k}" for k in TRAIN_STATS),
     "loss/critic",
     "loss/actor",
     "loss/alpha",
@@ -327,7 +311,7 @@ class TrainingRun:
             return {"wall_s": wall(), "train_wall_s": wall() - eval_s}
 
         per_call = cfg.num_envs * cfg.steps_per_call
-        totals = {k: 0.0 for k in EPISODE_KEYS}
+        totals = {k: 0.0 for k in TOTAL_KEYS}
         losses: dict[str, float] = {}
         if step == 0:  # the untrained policy, then the replay prefill
             ev = timed_eval(cfg.seed + 10_000)
@@ -385,7 +369,7 @@ class TrainingRun:
                     "return": f"{ev['mean_return']:.1f}",
                 }
                 bar.set_postfix(sps=f"{sps:.0f}", **post)
-                totals = {k: 0.0 for k in EPISODE_KEYS}
+                totals = {k: 0.0 for k in TOTAL_KEYS}
                 t_sps, s_sps = time.perf_counter(), step
                 if self.stop_at_success is not None and ev["success_rate"] >= self.stop_at_success:
                     print(
@@ -460,41 +444,13 @@ def _accumulate(totals: dict[str, float], tot) -> None:
 
 
 def _train_stats(t: dict[str, float]) -> dict[str, float]:
-    n = t["episodes"]
-    if n == 0:
-        return {"train/episodes": 0}
-    out = {
-        "train/episodes": int(n),
-        "train/success_rate": t["success"] / n,
-        "train/mean_fz_N": t["mean_fz_N"] / n,
-        "train/peak_fz_N": t["peak_fz_N"] / n,
-        "train/mean_fxy_N": t["mean_fxy_N"] / n,
-        "train/mean_return": t["return"] / n,
-        "train/mean_discounted_return": t["discounted_return"] / n,
-        "train/nan_worlds": int(t["nan"]),
-    }
-    if t["success"] > 0:
-        out["train/mean_time_s"] = t["extraction_time_s"] / t["success"]
-    return out
+    """The training episodes' statistics of an evaluation period (``train/...``)."""
+    return _prefix("train/", summarize_totals(t), TRAIN_STATS)
 
 
-_EVAL_KEYS = (
-    "episodes",
-    "success_rate",
-    "mean_time_s",
-    "mean_fz_N",
-    "peak_fz_N",
-    "mean_fxy_N",
-    "mean_return",
-    "mean_discounted_return",
-    "nan_worlds",
-    "jammed",
-)
-
-
-def _prefix(p: str, d: dict[str, Any]) -> dict[str, Any]:
-    """The rollout summary's logged keys, prefixed (``eval/...``)."""
-    return {p + k: d[k] for k in _EVAL_KEYS if k in d}
+def _prefix(p: str, d: dict[str, Any], keys=EVAL_STATS) -> dict[str, Any]:
+    """The logged statistics of ``d``, prefixed (``eval/...``)."""
+    return {p + k: d[k] for k in keys if k in d}
 
 
 def _fmt(v):

@@ -40,26 +40,13 @@ from brax.training.acme import running_statistics, specs
 from brax.training.agents.sac import losses as sac_losses
 from brax.training.types import Transition
 
-from peghole_mjx.envs.base import PegHoleEnv
+from peghole_mjx.envs.extraction import PegHoleEnv
+from peghole_mjx.envs.metrics import accumulate_return, episode_totals, zero_returns
 from peghole_mjx.errors import UserInputError
 from peghole_mjx.policies import make_networks
 from peghole_mjx.training.config import TrainConfig
 
 AXIS = "i"
-
-#: per-episode quantities summed over the episodes that end during a call
-EPISODE_KEYS = (
-    "episodes",
-    "success",
-    "jammed",
-    "nan",
-    "extraction_time_s",
-    "mean_fz_N",
-    "peak_fz_N",
-    "mean_fxy_N",
-    "return",
-    "discounted_return",
-)
 
 
 @flax.struct.dataclass
@@ -175,7 +162,7 @@ class SACTrainer:
         k_env, k_buf, k_run = jax.random.split(local_key, 3)
         env_state = jax.vmap(self.env.reset)(jax.random.split(k_env, self.envs_per_dev))
         n = self.envs_per_dev
-        ep_acc = {"return": jnp.zeros(n), "discounted_return": jnp.zeros(n), "gamma_t": jnp.ones(n)}
+        ep_acc = zero_returns(n)
         carry = Carry(ts, env_state, ep_acc, self.buffer.init(k_buf), k_run)
         # no weak types: a carry reloaded from disk then has exactly the same avals (no
         # recompile on resume)
@@ -222,19 +209,11 @@ class SACTrainer:
                 "policy_extras": {},
             },
         )
-        acc = carry.ep_acc
-        ret = acc["return"] + nxt.reward
-        dret = acc["discounted_return"] + acc["gamma_t"] * nxt.reward
+        acc = accumulate_return(carry.ep_acc, nxt.reward, self.cfg.discounting)
         done = nxt.done > 0
-        m = nxt.metrics
-        ended = {**m, "return": ret, "discounted_return": dret}
-        totals = {k: jnp.where(done, ended[k], 0.0).sum() for k in EPISODE_KEYS if k != "episodes"}
-        totals["episodes"] = done.sum()
-        ep_acc = {
-            "return": jnp.where(done, 0.0, ret),
-            "discounted_return": jnp.where(done, 0.0, dret),
-            "gamma_t": jnp.where(done, 1.0, acc["gamma_t"] * self.cfg.discounting),
-        }
+        totals = episode_totals({**nxt.metrics, **acc}, done)
+        fresh = zero_returns()
+        ep_acc = {k: jnp.where(done, fresh[k], v) for k, v in acc.items()}
         normalizer = ts.normalizer
         if self.cfg.normalize_observations:
             normalizer = running_statistics.update(normalizer, es.obs, pmap_axis_name=AXIS)

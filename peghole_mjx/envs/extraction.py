@@ -1,0 +1,392 @@
+"""The peg extraction task in MJX: shared by RectExtract and DualExtract (thesis Ch 4).
+
+API (MuJoCo Playground / Brax style): ``reset(rng) -> State``, ``step(state, action) -> State``,
+``State(data, obs, reward, done, metrics, info)``, all pure and jit/vmap-able.
+
+The progress of a step is ``dz = h_t - h_{t-1}`` (mm, h = tip depth below the mouth),
+negative when the peg comes out, so the thesis's reward term ``-w_d dz`` (eq 4.4) rewards
+pulling out.
+
+Control. An action moves the commanded tip pose and feed-forward force; the impedance law
+(:mod:`peghole_mjx.control`) runs at every physics substep and tracks the commanded pose with
+its compliance centre ``L_C`` above the tip. See :class:`PegHoleEnv` for the tables.
+
+The pieces of a step that hold a number of the config are pure functions of the config
+(:func:`decode_action`, :func:`impedance_params`, :func:`observation`, :func:`termination`,
+:func:`~peghole_mjx.envs.reward.reward_terms`, and
+:func:`~peghole_mjx.envs.randomization.randomization_fn` at reset).
+"""
+
+from __future__ import annotations
+
+import functools
+
+import jax
+import jax.numpy as jnp
+from ml_collections import config_dict
+
+from peghole_mjx._mjx import mjx
+from peghole_mjx.control import ImpedanceParams, Target, make_params
+from peghole_mjx.control.kinematics import newton_ik, rot_z
+from peghole_mjx.envs import iiwa_constants as names
+from peghole_mjx.envs.base import PegHoleBase, State, contact_overflow
+from peghole_mjx.envs.metrics import zero_metrics
+from peghole_mjx.envs.randomization import randomization_fn
+from peghole_mjx.envs.reward import reward_terms
+from peghole_mjx.geometry.mjcf import TOOL_DOWN_MAT
+from peghole_mjx.geometry.specs import MM
+
+
+def clean_action(action: jax.Array) -> jax.Array:
+    """The action clipped to [-1, 1], NaN entries set to 0 (the step also flags the world)."""
+    return jnp.clip(jnp.where(jnp.isnan(action), 0.0, action), -1.0, 1.0)
+
+
+def compliance_actions(
+    c: config_dict.ConfigDict, peg_length_m: float
+) -> dict[str, tuple[int, float, float]]:
+    """Each compliance-strategy action present: name (``k_xy``, ``k_rot``, ``L_C``) ->
+    (action index, value at -1, value at +1), in N/m, N m/rad and m."""
+    s = c.stiffness
+    ranges = {}
+    if c.compliance_strategy:
+        ranges["k_xy"] = (s.k_xy_min_N_m, s.k_xy_max_N_m)
+        if c.compliance_rotation:
+            ranges["k_rot"] = (s.k_rot_min_Nm_rad, s.k_rot_max_Nm_rad)
+        if c.learn_compliance_centre:
+            ranges["L_C"] = (0.0, peg_length_m)
+    return {name: (6 + i, *r) for i, (name, r) in enumerate(ranges.items())}
+
+
+def fixed_compliance(c: config_dict.ConfigDict) -> dict[str, float]:
+    """k_xy (N/m), K_theta (N m/rad) and L_C (m) of the fixed-compliance method (CS off)."""
+    s = c.stiffness
+    return {"k_xy": s.k_xy_N_m, "k_rot": s.k_rot_Nm_rad, "L_C": s.compliance_centre_mm * MM}
+
+
+def decode_action(action, info, c: config_dict.ConfigDict, compliance_actions):
+    """Commanded tip pose, feed-forward force, k_xy, K_theta and L_C after this action.
+
+    ``compliance_actions``: :attr:`PegHoleEnv.compliance_actions` (index and range of each
+    learned gain). The feed-forward force is held within ``limits.max_force_N``, its lateral
+    components also within ``action.max_ff_xy_N``.
+    """
+    a = clean_action(action)
+    H = info["hole_mat"]
+    dxy = a[:2] * c.action.max_step_offset_mm * MM
+    dz = a[2] * c.action.max_speed_m_s * c.ctrl_dt
+    cmd_tip = info["cmd_tip"] + H @ jnp.array([dxy[0], dxy[1], dz])
+    fx, fy, fz = c.limits.max_force_N
+    ff_xy = c.action.max_ff_xy_N
+    cap = jnp.asarray((min(fx, ff_xy), min(fy, ff_xy), fz), jnp.float32)
+    wrench_ff = jnp.clip(info["wrench_ff"] + a[3:6] * c.action.max_force_step_N, -cap, cap)
+    gains = {k: info[k] for k in ("k_xy", "k_rot", "L_C")}
+    for name, (i, lo, hi) in compliance_actions.items():  # [-1, 1] -> [lo, hi]
+        gains[name] = lo + 0.5 * (a[i] + 1.0) * (hi - lo)
+    return cmd_tip, wrench_ff, gains["k_xy"], gains["k_rot"], gains["L_C"]
+
+
+def impedance_params(
+    c: config_dict.ConfigDict, k_xy, k_rot, L_C, wrench_ff_local, q_null
+) -> ImpedanceParams:
+    """The impedance law's parameters of a control step (``stiffness`` group of the config).
+
+    ``wrench_ff_local``: the feed-forward force in the compliance (commanded) frame.
+    """
+    s = c.stiffness
+    return make_params(
+        L_C,
+        q_null,
+        stiffness=jnp.stack([k_xy, k_xy, s.k_z_N_m, k_rot, k_rot, k_rot]).astype(jnp.float32),
+        damping_ratio=s.damping_ratio,
+        wrench_ff=jnp.concatenate([wrench_ff_local, jnp.zeros(3)]),
+        null_gains=(s.null_stiffness_Nm_rad, s.null_damping_Nms_rad),
+    )
+
+
+def observation(
+    pos, rot, info, c: config_dict.ConfigDict, flange_z0_m: float, peg_length_m: float
+) -> jax.Array:
+    """The observation (table of :class:`PegHoleEnv`) from the flange pose (hole frame:
+    position ``pos`` in m, tilt ``rot`` as a rotation vector in rad) and ``info``."""
+    o = c.obs
+    f, t = info["wrench"][:3], info["wrench"][3:]
+    parts = [
+        pos[:2] / MM,
+        ((pos[2] - flange_z0_m) / peg_length_m)[None],
+        f / o.force_scale_N,
+        jnp.rad2deg(rot),
+    ]
+    if o.torques:
+        parts.append(t / o.torque_scale_Nm)
+    if o.stiffness:
+        parts.append(
+            jnp.stack(
+                [
+                    info["k_xy"] / o.k_xy_scale_N_m,
+                    info["k_rot"] / o.k_rot_scale_Nm_rad,
+                    info["L_C"] / peg_length_m,
+                ]
+            )
+        )
+    if o.prev_action:
+        parts.append(info["prev_action"])
+    obs = jnp.concatenate(parts)
+    return jnp.where(jnp.isfinite(obs), obs, 0.0)
+
+
+def termination(fxy_N, depth_mm, jam_time_prev_s, step, nan, overflow, c: config_dict.ConfigDict):
+    """``(jam_time, jammed, success, failure, done)`` of a step: success ``success_margin_mm``
+    above the mouth; failure on jamming (|f_xy| > ``jam_force_N`` for ``jam_time_s``), NaN,
+    contact overflow or the ``episode_length`` limit."""
+    jam_time = jnp.where(fxy_N > c.jam_force_N, jam_time_prev_s + c.ctrl_dt, 0.0)
+    jammed = (jam_time >= c.jam_time_s).astype(jnp.float32)
+    success = (depth_mm < -c.success_margin_mm).astype(jnp.float32) * (1.0 - nan)
+    timeout = (step >= c.episode_length).astype(jnp.float32)
+    failure = jnp.maximum(jnp.maximum(jammed, nan), jnp.maximum(timeout, overflow))
+    failure = failure * (1.0 - success)
+    done = jnp.maximum(success, failure)
+    return jam_time, jammed, success, failure, done
+
+
+class PegHoleEnv(PegHoleBase):
+    """Pull a peg out of its hole with the iiwa's impedance layer (thesis Ch 4).
+
+    Observation (eq 4.2, hole frame, scaled to order one; scales from ``config.obs``):
+
+    | index | quantity | unit / scale |
+    |---|---|---|
+    | 0-1 | flange x, y offset from the hole axis | mm |
+    | 2 | flange height above its start, / peg length | 0 inserted, 1 out |
+    | 3-5 | F/T sensor force Fx, Fy, Fz (peg weight removed) | / 20 N |
+    | 6-8 | flange tilt theta, phi, psi (rotation vector vs. straight down) | deg |
+    | + | optional: torques (/3 N m), k_xy (/1000 N/m), K_theta (/300 N m/rad), L_C (/L), | |
+    |   | previous action | |
+
+    Action (eq 4.3), each in [-1, 1]:
+
+    | index | quantity | mapping |
+    |---|---|---|
+    | 0-1 | dx, dy: commanded tip offset | x 0.1 mm per step |
+    | 2 | dz: commanded pull (+ = out) | x 0.1 m/s x ctrl_dt |
+    | 3-5 | dFx, dFy, dFz: feed-forward change | x 2 N per step, total within 20/20/60 N [1] |
+    | 6 | k_xy (compliance_strategy) | [50, 1000] N/m |
+    | 7 | K_theta (compliance_strategy and compliance_rotation) | [10, 300] N m/rad |
+    | last | L_C (learn_compliance_centre) | [0, L] |
+
+    [1] ``limits.max_force_N``, the lateral total also within ``action.max_ff_xy_N``.
+
+    Reward (eq 4.4, Table 4.1), named terms logged as ``metrics["reward/<term>"]``:
+
+    | term | value |
+    |---|---|
+    | progress | ``-w_d dz`` with dz = change of tip depth in mm (pulling out is positive) |
+    | force | ``-w_f ||f_xy|| / 20 N`` |
+    | stiffness | ``-w_stf ||k_xy|| / (1000 N/m)`` (k_xy in N/mm) |
+    | rot_stiffness | ``-w_stf_rot K_theta / (300 N m/rad)``: not in eq 4.4, 0 by default |
+    | extraction_force | ``-w_fz |f_z| / 1 N``: not in eq 4.4, 0 by default |
+    | end | ``+1`` on success, ``-1`` on failure (jamming, NaN, time limit) |
+
+    Episode starts are drawn by :attr:`randomization_fn`
+    (:func:`peghole_mjx.envs.randomization.randomization_fn`; a task variant may replace it).
+    """
+
+    #: ``(rng, config.randomization, k_xy_fixed_N_m) -> EpisodeDraw``: the episode start's draw
+    randomization_fn = staticmethod(randomization_fn)
+
+    # ------------------------------------------------------------------ properties
+    @property
+    def compliance_actions(self) -> dict[str, tuple[int, float, float]]:
+        """Each compliance-strategy action present (see :func:`compliance_actions`)."""
+        return compliance_actions(self._config, self.peg_length_m)
+
+    @property
+    def fixed_compliance(self) -> dict[str, float]:
+        """k_xy, K_theta and L_C of the fixed-compliance method (CS off; the baseline)."""
+        return fixed_compliance(self._config)
+
+    @property
+    def action_size(self) -> int:
+        return 6 + len(self.compliance_actions)
+
+    @functools.cached_property
+    def observation_size(self) -> int:
+        out = jax.eval_shape(self.reset, jax.random.PRNGKey(0))
+        return int(out.obs.shape[-1])
+
+    # ------------------------------------------------------------------ reset
+    def _solve_start(self, hole_pos, hole_mat):
+        """Joint angles with the peg inserted in a moved hole: Newton steps from the keyframe."""
+        d0 = self._make_data()
+        d0 = d0.replace(mocap_pos=d0.mocap_pos.at[self._hole_mocap].set(hole_pos))
+        return newton_ik(
+            self._mjx_model,
+            d0,
+            self._init_q[self._qadr],
+            self._qadr,
+            self._ctrl.dadr,
+            self._peg_body,
+            self._tip_local,
+            pos_target=hole_pos + hole_mat @ jnp.array([0.0, 0.0, -(self._depth0_mm * MM)]),
+            mat_target=hole_mat @ jnp.asarray(TOOL_DOWN_MAT),
+            iterations=names.START_IK_ITERATIONS,
+        )
+
+    def reset(self, rng: jax.Array) -> State:
+        """A fully re-randomised episode start (never a cached first state)."""
+        fixed = self.fixed_compliance
+        draw = self.randomization_fn(rng, self._config.randomization, fixed["k_xy"])
+        yaw = draw.hole_yaw
+        hole_pos = jnp.asarray(self._hole_pos0) + draw.hole_offset
+        hole_mat = rot_z(yaw)
+        q = self._solve_start(hole_pos, hole_mat)
+        data = self._make_data()
+        data = data.replace(
+            qpos=data.qpos.at[self._qadr].set(q),
+            mocap_pos=data.mocap_pos.at[self._hole_mocap].set(hole_pos),
+            mocap_quat=data.mocap_quat.at[self._hole_mocap].set(
+                jnp.array([jnp.cos(yaw / 2), 0.0, 0.0, jnp.sin(yaw / 2)])
+            ),
+        )
+        data = mjx.forward(self._mjx_model, data)
+        # commanded pose errors (hole frame): lateral offset in a disc, tilt about x and y
+        cmd_tip = self._tip_world(data) + hole_mat @ draw.lateral_error
+        cmd_mat = hole_mat @ draw.tilt_mat @ jnp.asarray(TOOL_DOWN_MAT)
+        info = {
+            "rng": draw.rng,
+            "cmd_tip": cmd_tip,
+            "cmd_mat": cmd_mat,
+            "hole_pos": hole_pos,
+            "hole_mat": hole_mat,
+            "wrench_ff": jnp.zeros(3),
+            "k_xy": jnp.asarray(draw.k_xy, jnp.float32),
+            "k_rot": jnp.asarray(fixed["k_rot"], jnp.float32),
+            "L_C": jnp.asarray(fixed["L_C"], jnp.float32),
+            "friction_scale": draw.friction_scale,
+            "depth_mm": self._depth_mm(data, hole_pos, hole_mat),
+            "jam_time": jnp.zeros(()),
+            "prev_action": jnp.zeros(self.action_size),
+            "step": jnp.zeros((), jnp.int32),
+            "success": jnp.zeros(()),
+            "failure": jnp.zeros(()),
+            "sum_fz": jnp.zeros(()),
+            "sum_fxy": jnp.zeros(()),
+            "peak_fz": jnp.zeros(()),
+            "nan": jnp.zeros(()),
+            # the F/T sensor is zeroed at the start (no contact there; the arm is not yet
+            # under control, so the raw reading would hold its free-fall transient)
+            "wrench": jnp.zeros(6),
+        }
+        obs = self._obs(data, info)
+        return State(data, obs, jnp.zeros(()), jnp.zeros(()), zero_metrics(), info)
+
+    # ------------------------------------------------------------------ step
+    def _decode_action(self, action, info):
+        return decode_action(action, info, self._config, self.compliance_actions)
+
+    def _obs(self, d, info) -> jax.Array:
+        pos, rot = self._flange_pose(d, info)
+        return observation(pos, rot, info, self._config, self._flange_z0, self.peg_length_m)
+
+    def _physics(self, data, info, cmd_tip_prev, cmd_tip, wrench_ff, k_xy, k_rot, L_C):
+        """Run the substeps with the impedance law tracking a linearly moving target."""
+        c = self._config
+        m = self._mjx_model.replace(
+            pair_friction=jnp.asarray(self._pair_friction0) * info["friction_scale"]
+        )
+        cmd_mat = info["cmd_mat"]
+        axis = cmd_mat[:, 2]  # peg axis (towards the tip) of the commanded pose
+        vel = (cmd_tip - cmd_tip_prev) / c.ctrl_dt
+        # force feed-forward: hole frame -> compliance (commanded) frame
+        ff = cmd_mat.T @ (info["hole_mat"] @ wrench_ff)
+        params = impedance_params(c, k_xy, k_rot, L_C, ff, self._init_q[self._qadr])
+
+        def substep(d, i):
+            frac = (i + 1.0) / self._n_substeps
+            tip = cmd_tip_prev + frac * (cmd_tip - cmd_tip_prev)
+            target = Target(pos=tip - L_C * axis, mat=cmd_mat, vel=vel)
+            d, _ = self._ctrl.apply(m, d, target, params)
+            d = mjx.step(m, d)
+            f, t = self.contact_wrench(d, info["hole_mat"])
+            return d, jnp.concatenate([f, t])
+
+        data, wrenches = jax.lax.scan(
+            substep, data, jnp.arange(self._n_substeps, dtype=jnp.float32)
+        )
+        # the F/T reading averaged over the control period (a sensor's anti-aliasing filter):
+        # single-substep contact impulses do not reach the observation or the force metrics
+        wrench = jnp.mean(jnp.where(jnp.isfinite(wrenches), wrenches, 0.0), axis=0)
+        return data, wrench
+
+    def step(self, state: State, action: jax.Array) -> State:
+        c = self._config
+        info = dict(state.info)
+        cmd_tip, wrench_ff, k_xy, k_rot, L_C = self._decode_action(action, info)
+        data, wrench = self._physics(
+            state.data, info, info["cmd_tip"], cmd_tip, wrench_ff, k_xy, k_rot, L_C
+        )
+        finite = jnp.all(jnp.isfinite(data.qpos)) & jnp.all(jnp.isfinite(data.qvel))
+        # a NaN action (NaN policy parameters) is applied as 0 and ends the episode like a NaN
+        # world (counted in nan_worlds)
+        finite = finite & jnp.all(jnp.isfinite(action))
+        # a NaN world keeps its last finite state and ends its episode; the batch goes on
+        data = jax.tree.map(lambda new, old: jnp.where(finite, new, old), data, state.data)
+        nan = 1.0 - finite.astype(jnp.float32)
+        overflow = contact_overflow(data)  # warp only: contacts were dropped, end the episode
+
+        wrench = jnp.where(finite, wrench, 0.0)
+        f = wrench[:3]
+        fxy = jnp.linalg.norm(f[:2])
+        fz = jnp.abs(f[2])
+        depth = self._depth_mm(data, info["hole_pos"], info["hole_mat"])
+        dz = depth - info["depth_mm"]
+        step = info["step"] + 1
+        jam_time, jammed, success, failure, done = termination(
+            fxy, depth, info["jam_time"], step, nan, overflow, c
+        )
+
+        terms = reward_terms(dz, fxy, k_xy, success, failure, c.reward_config, k_rot, fz)
+        terms["progress"] = jnp.where(finite, terms["progress"], 0.0)
+        reward = sum(terms.values())
+
+        sum_fz = info["sum_fz"] + fz
+        sum_fxy = info["sum_fxy"] + fxy
+        peak_fz = jnp.maximum(info["peak_fz"], fz)
+        info.update(
+            cmd_tip=cmd_tip,
+            wrench_ff=wrench_ff,
+            k_xy=jnp.asarray(k_xy, jnp.float32),
+            k_rot=jnp.asarray(k_rot, jnp.float32),
+            L_C=jnp.asarray(L_C, jnp.float32),
+            depth_mm=depth,
+            jam_time=jam_time,
+            prev_action=clean_action(action),
+            step=step,
+            success=success,
+            failure=failure,
+            sum_fz=sum_fz,
+            sum_fxy=sum_fxy,
+            peak_fz=peak_fz,
+            nan=nan,
+            wrench=wrench,
+        )
+        metrics = {f"reward/{k}": v for k, v in terms.items()}
+        n = step.astype(jnp.float32)
+        metrics.update(
+            success=success,
+            failure=failure,
+            jammed=jammed * (1.0 - success),
+            nan=nan,
+            overflow=overflow,
+            extraction_time_s=jnp.where(success > 0, n * c.ctrl_dt, 0.0),
+            mean_fz_N=sum_fz / n,
+            peak_fz_N=peak_fz,
+            mean_fxy_N=sum_fxy / n,
+            fz_N=fz,
+            fxy_N=fxy,
+            depth_mm=depth,
+            k_xy_N_m=jnp.asarray(k_xy, jnp.float32),
+            k_rot_Nm_rad=jnp.asarray(k_rot, jnp.float32),
+        )
+        obs = self._obs(data, info)
+        return State(data, obs, reward, done, metrics, info)

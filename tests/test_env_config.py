@@ -1,0 +1,322 @@
+"""Every env config entry that reset or step reads changes what the env does when overridden.
+
+The step's pieces that hold a config number are pure functions of the config (action
+decoding, impedance parameters, observation, termination, reward, the reset's draw), so
+most entries are checked there, without compiling an env: the default config and the config
+with one entry overridden give different outputs. Entries used when the env is built (scene,
+substeps, wrench caps) are checked on built envs. One trace of reset and step (no
+compilation) checks that the env calls those functions with its own config, and a source
+check that no step module reads the robot's global limits or gains instead of the config.
+"""
+
+from __future__ import annotations
+
+import ast
+import types
+from pathlib import Path
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+import pytest
+
+from peghole_mjx import envs
+from peghole_mjx.envs import base, extraction
+from peghole_mjx.envs.config import apply_overrides
+from peghole_mjx.envs.randomization import randomization_fn
+from peghole_mjx.envs.reward import reward_terms
+from peghole_mjx.errors import UserInputError
+
+ENV = "RectExtract"
+PEG_LENGTH_M = 0.15
+#: probe settings under which every entry of a probe's function matters (e.g. the learned
+#: gains present, the non-thesis reward terms on)
+PROBE_BASE = {
+    "compliance_strategy": True,
+    "learn_compliance_centre": True,
+    "obs.torques": True,
+    "obs.stiffness": True,
+    "obs.prev_action": True,
+    "reward_config.w_stf_rot": 0.5,
+    "reward_config.w_fz": 0.5,
+}
+
+
+def config(overrides: dict | None = None):
+    return apply_overrides(envs.get_default_config(ENV), {**PROBE_BASE, **(overrides or {})})
+
+
+def _flat(tree) -> np.ndarray:
+    return np.concatenate([np.ravel(np.asarray(x, np.float64)) for x in jax.tree.leaves(tree)])
+
+
+# ---------------------------------------------------------------------- probes (pure)
+ACTION = jnp.array([0.5, -0.3, 0.7, 1.0, -1.0, 1.0, 0.2, -0.4, 0.6])
+
+
+def probe_action(c):
+    """Decoded action from two states: no feed-forward yet, and feed-forward near its caps."""
+    out = []
+    for ff in ((0.0, 0.0, 0.0), (19.5, -19.5, 59.5)):
+        info = {
+            "hole_mat": jnp.eye(3),
+            "cmd_tip": jnp.zeros(3),
+            "wrench_ff": jnp.asarray(ff),
+            "k_xy": 111.0,
+            "k_rot": 22.0,
+            "L_C": 0.01,
+        }
+        ca = extraction.compliance_actions(c, PEG_LENGTH_M)
+        out.append(_flat(extraction.decode_action(ACTION, info, c, ca)))
+    return np.concatenate(out)
+
+
+def probe_params(c):
+    return _flat(extraction.impedance_params(c, 300.0, 30.0, 0.0, jnp.zeros(3), jnp.zeros(7)))
+
+
+def probe_fixed(c):
+    return _flat(extraction.fixed_compliance(c))
+
+
+def probe_obs(c):
+    info = {
+        "wrench": jnp.array([3.0, -2.0, 5.0, 0.3, -0.2, 0.1]),
+        "k_xy": 300.0,
+        "k_rot": 30.0,
+        "L_C": 0.01,
+        "prev_action": ACTION,
+    }
+    pos, rot = jnp.array([1e-3, -2e-3, 0.12]), jnp.array([0.01, -0.02, 0.003])
+    return _flat(extraction.observation(pos, rot, info, c, 0.1, PEG_LENGTH_M))
+
+
+def probe_reward(c):
+    t = reward_terms(-0.4, 10.0, 300.0, 1.0, 1.0, c.reward_config, 30.0, 3.0)
+    return _flat(t)
+
+
+def probe_termination(c):
+    """Two worlds: one jamming and above the success margin, one at the time limit."""
+    default_length = envs.get_default_config(ENV).episode_length
+    out = extraction.termination(
+        jnp.array([19.0, 0.0]),  # |f_xy|, N
+        jnp.array([-5.5, 3.0]),  # depth, mm
+        jnp.array([0.28, 0.0]),  # jamming time so far, s
+        jnp.array([10, default_length]),
+        0.0,
+        0.0,
+        c,
+    )
+    return _flat(out)
+
+
+def probe_reset_draw(c):
+    keys = jax.random.split(jax.random.PRNGKey(0), 4)
+    draw = jax.vmap(lambda k: randomization_fn(k, c.randomization, 300.0))(keys)
+    return _flat(draw._replace(rng=jnp.zeros(())))
+
+
+#: entry -> (overridden value, probe); each value differs from the probe setting
+PURE = {
+    "ctrl_dt": (0.04, [probe_action, probe_termination]),
+    "episode_length": (10_000, [probe_termination]),
+    "success_margin_mm": (6.0, [probe_termination]),
+    "jam_force_N": (19.5, [probe_termination]),
+    "jam_time_s": (0.35, [probe_termination]),
+    "action.max_step_offset_mm": (0.2, [probe_action]),
+    "action.max_speed_m_s": (0.05, [probe_action]),
+    "action.max_force_step_N": (3.0, [probe_action]),
+    "action.max_ff_xy_N": (10.0, [probe_action]),
+    "limits.max_force_N": ((25.0, 25.0, 70.0), [probe_action]),
+    "compliance_strategy": (False, [probe_action]),
+    "compliance_rotation": (False, [probe_action]),
+    "learn_compliance_centre": (False, [probe_action]),
+    "stiffness.k_xy_min_N_m": (100.0, [probe_action]),
+    "stiffness.k_xy_max_N_m": (900.0, [probe_action]),
+    "stiffness.k_rot_min_Nm_rad": (20.0, [probe_action]),
+    "stiffness.k_rot_max_Nm_rad": (200.0, [probe_action]),
+    "stiffness.k_xy_N_m": (400.0, [probe_fixed]),
+    "stiffness.k_rot_Nm_rad": (200.0, [probe_fixed]),
+    "stiffness.compliance_centre_mm": (10.0, [probe_fixed]),
+    "stiffness.k_z_N_m": (3000.0, [probe_params]),
+    "stiffness.damping_ratio": (0.7, [probe_params]),
+    "stiffness.null_stiffness_Nm_rad": (5.0, [probe_params]),
+    "stiffness.null_damping_Nms_rad": (1.0, [probe_params]),
+    "obs.torques": (False, [probe_obs]),
+    "obs.stiffness": (False, [probe_obs]),
+    "obs.prev_action": (False, [probe_obs]),
+    "obs.force_scale_N": (10.0, [probe_obs]),
+    "obs.torque_scale_Nm": (1.0, [probe_obs]),
+    "obs.k_xy_scale_N_m": (500.0, [probe_obs]),
+    "obs.k_rot_scale_Nm_rad": (100.0, [probe_obs]),
+    **{
+        f"reward_config.{k}": (v, [probe_reward])
+        for k, v in {
+            "w_d": 2.0,
+            "w_f": 2.0,
+            "w_stf": 0.2,
+            "r_success": 2.0,
+            "r_failure": -2.0,
+            "force_scale_N": 10.0,
+            "stiffness_scale_N_m": 500.0,
+            "w_stf_rot": 1.0,
+            "rot_stiffness_scale_Nm_rad": 100.0,
+            "w_fz": 1.0,
+            "fz_scale_N": 2.0,
+        }.items()
+    },
+    **{
+        f"randomization.{k}": (v, [probe_reset_draw])
+        for k, v in {
+            "lateral_error_mm": 2.0,
+            "angular_error_deg": 1.0,
+            "hole_xy_mm": 3.0,
+            "hole_yaw_deg": 2.0,
+            "friction_scale": (0.9, 1.0),
+            "stiffness_N_m": (100.0, 200.0),
+        }.items()
+    },
+}
+
+
+@pytest.mark.parametrize("key", sorted(PURE))
+def test_override_changes_the_step_function_that_reads_it(key):
+    value, probes = PURE[key]
+    default, changed = config(), config({key: value})
+    for probe in probes:
+        a, b = probe(default), probe(changed)
+        assert a.shape != b.shape or not np.allclose(a, b), f"{key} ignored by {probe.__name__}"
+
+
+# ---------------------------------------------------------------------- built envs
+def _scene(env) -> dict:
+    m = env.mj_model
+    return {
+        "n_substeps": env.n_substeps,
+        "timestep": m.opt.timestep,
+        "ngeom": m.ngeom,
+        "nbody": m.nbody,
+        "pair_solref": np.asarray(m.pair_solref).round(9).tolist(),
+        "pair_solreffriction": np.asarray(m.pair_solreffriction).round(9).tolist(),
+        "pair_friction": np.asarray(m.pair_friction).round(9).tolist(),
+        "max_contact_points": [m.numeric(i).data.tolist() for i in range(m.nnumeric)],
+        "wrench_caps": env._ctrl.limits.max_wrench,
+        "geom_size": float(np.abs(m.geom_size).sum()).__round__(9),
+        "peg_length_m": env.peg_length_m,
+    }
+
+
+#: entries used when the env is built: overridden value (built envs, no compilation)
+SCENE = {
+    "preset": "rect-3",
+    "representation": "box",
+    "contact_cap": 3,
+    "sim_dt": 0.004,
+    "ctrl_dt": 0.04,
+    "contact.timeconst_s": 0.02,
+    "contact.friction_timeconst_s": 0.5,
+    "limits.max_force_N": (25.0, 25.0, 70.0),
+    "limits.max_torque_Nm": (2.0, 2.0, 1.0),
+}
+
+
+@pytest.fixture(scope="module")
+def default_scene():
+    return _scene(envs.load(ENV))
+
+
+@pytest.mark.parametrize("key", sorted(SCENE))
+def test_override_changes_the_built_env(key, default_scene):
+    assert _scene(envs.load(ENV, config_overrides={key: SCENE[key]})) != default_scene
+
+
+def test_peg_length_comes_from_the_preset():
+    """The flange-height and L_C scale is the preset's peg length (no separate entry)."""
+    rect = envs.load(ENV, config_overrides={"compliance_strategy": True})
+    dual = envs.load("DualExtract", config_overrides={"compliance_strategy": True})
+    assert (rect.peg_length_m, dual.peg_length_m) == pytest.approx((0.15, 0.05))
+    assert "peg_length_mm" not in rect.config
+
+
+def test_impl_and_warp_buffers_are_read(monkeypatch):
+    """impl selects the backend; naconmax and njmax size MuJoCo Warp's buffers (CUDA only)."""
+    if not base.WARP_AVAILABLE:
+        with pytest.raises(UserInputError, match="warp"):
+            envs.load(ENV, config_overrides={"impl": "warp"})
+    seen = []
+    monkeypatch.setattr(base.mjx, "make_data", lambda m, **kw: seen.append(kw))
+    for over in ({}, {"naconmax": 32, "njmax": 128}):
+        c = apply_overrides(envs.get_default_config(ENV), {"impl": "warp", **over})
+        base.PegHoleBase._make_data(types.SimpleNamespace(_config=c, _mjx_model=None))
+    assert seen == [
+        {"impl": "warp", "naconmax": 64, "njmax": 256},
+        {"impl": "warp", "naconmax": 32, "njmax": 128},
+    ]
+
+
+# ---------------------------------------------------------------------- coverage and wiring
+def _leaves(c, prefix=""):
+    for k, v in c.items():
+        if hasattr(v, "items"):
+            yield from _leaves(v, f"{prefix}{k}.")
+        else:
+            yield prefix + k
+
+
+def test_every_config_entry_is_checked():
+    extra = {"impl", "naconmax", "njmax"}  # test_impl_and_warp_buffers_are_read
+    for name in envs.ALL_ENVS:
+        leaves = set(_leaves(envs.get_default_config(name)))
+        assert leaves == set(PURE) | set(SCENE) | extra, name
+
+
+def test_reset_and_step_call_the_config_functions_with_the_env_config(monkeypatch):
+    """A trace (no compilation) of reset and step: each config-reading function is called
+    with the env's own config, so an override reaches the step through them."""
+    env = envs.load(ENV, config_overrides={"compliance_strategy": True})
+    calls: dict[str, object] = {}
+
+    def spy(name, fn, config_arg):
+        def wrapped(*a, **k):
+            calls[name] = config_arg(a)
+            return fn(*a, **k)
+
+        monkeypatch.setattr(extraction, name, wrapped)
+
+    spy("decode_action", extraction.decode_action, lambda a: a[2])
+    spy("impedance_params", extraction.impedance_params, lambda a: a[0])
+    spy("observation", extraction.observation, lambda a: a[3])
+    spy("termination", extraction.termination, lambda a: a[6])
+    spy("reward_terms", extraction.reward_terms, lambda a: a[5])
+
+    def draw(rng, r, k_xy):
+        calls["draw"] = r
+        return randomization_fn(rng, r, k_xy)
+
+    monkeypatch.setattr(type(env), "randomization_fn", staticmethod(draw))
+    state = jax.eval_shape(env.reset, jax.random.PRNGKey(0))
+    jax.eval_shape(env.step, state, jnp.zeros(env.action_size))
+    assert calls.pop("draw") is env.config.randomization
+    assert calls.pop("reward_terms") is env.config.reward_config
+    assert set(calls) == {
+        "decode_action",
+        "impedance_params",
+        "observation",
+        "termination",
+    }
+    assert all(c is env.config for c in calls.values())
+
+
+STEP_MODULES = ("base.py", "extraction.py", "randomization.py", "reward.py", "metrics.py")
+
+
+@pytest.mark.parametrize("module", STEP_MODULES)
+def test_step_modules_read_no_global_limits_or_gains(module):
+    """The robot's LIMITS and GAINS are copied into the config (envs/config.py) and nowhere
+    else read by the env: a module that reads them would ignore an override."""
+    path = Path(extraction.__file__).with_name(module)
+    tree = ast.parse(path.read_text())
+    names = {n.id for n in ast.walk(tree) if isinstance(n, ast.Name)}
+    names |= {a.name for n in ast.walk(tree) if isinstance(n, ast.ImportFrom) for a in n.names}
+    assert not names & {"LIMITS", "GAINS"}, module
