@@ -170,6 +170,7 @@ def main(argv: list[str] | None = None) -> int:
         "jam_rule": {"jam_force_N": c.jam_force_N, "jam_time_s": c.jam_time_s},
         "episode_length_s": c.episode_length * c.ctrl_dt,
         "seed": args.seed,
+        "batch": args.batch,
         **provenance(),
         "wall_s": round(wall, 1),
         **summarise(ep),
