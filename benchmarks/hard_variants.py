@@ -113,9 +113,10 @@ def parse_overrides(items: list[str] | None) -> dict:
 def run(name, overrides, episodes, seed, batch, parts_root, progress=True):
     """The scripted rollout of env ``name`` with ``overrides``: (env, per-episode arrays, s)."""
     env = envs.load(name, config_overrides=overrides or None)
-    tag = hashlib.sha1(
-        json.dumps([name, overrides, seed, batch], sort_keys=True).encode()
-    ).hexdigest()[:10]
+    # slices are keyed to the env's whole config (not its name: a changed hard_config must
+    # not reuse the old slices), the seed and the batch
+    key = [name, env.config.to_dict(), seed, batch]
+    tag = hashlib.sha1(json.dumps(key, sort_keys=True, default=str).encode()).hexdigest()[:10]
     parts = parts_root / f"{name}_{tag}" if parts_root is not None else None
     t0 = time.perf_counter()
     res = rollout(
