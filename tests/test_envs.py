@@ -47,7 +47,12 @@ def rect() -> Compiled:
 
 
 def test_registry():
-    assert set(envs.ALL_ENVS) == {"RectExtract", "DualExtract"}
+    assert set(envs.ALL_ENVS) == {
+        "RectExtract",
+        "DualExtract",
+        "RectExtractHard",  # tests/test_hard_variants.py
+        "DualExtractHard",
+    }
     cfg = envs.get_default_config("DualExtract")
     assert cfg.preset == "dual-2" and cfg.reward_config.w_stf == REWARD_WEIGHTS["w_stf"]
     with pytest.raises(UserInputError, match="unknown env"):

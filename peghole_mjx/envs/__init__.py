@@ -17,10 +17,16 @@ from peghole_mjx.errors import UserInputError
 _envs: dict[str, type[PegHoleEnv]] = {
     "RectExtract": rect_extract.RectExtract,
     "DualExtract": dual_extract.DualExtract,
+    # the hard variants: the same tasks where the scripted Ch 2-3 method fails in part of the
+    # episodes (docs/training.md, "Hard variants")
+    "RectExtractHard": rect_extract.RectExtract,
+    "DualExtractHard": dual_extract.DualExtract,
 }
 _cfgs: dict[str, Callable[[], config_dict.ConfigDict]] = {
     "RectExtract": rect_extract.default_config,
     "DualExtract": dual_extract.default_config,
+    "RectExtractHard": rect_extract.hard_config,
+    "DualExtractHard": dual_extract.hard_config,
 }
 ALL_ENVS = tuple(_envs)
 
