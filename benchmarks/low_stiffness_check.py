@@ -13,7 +13,9 @@ peg, the sweep's first two repeats) in MJX under variants that change one suspec
   (:mod:`peghole_mjx.mjx_fixes`), against NaN worlds;
 * ``step``: 1 ms against 0.5 ms;
 * ``speed``: 20 mm/s against 5 mm/s (the oracle is quasi-static: a slower pull tests whether
-  the arm's dynamics decide the force).
+  the arm's dynamics decide the force);
+* ``off-axis 300``: only the tilt axis (y, the planar oracle's) soft, x and z at 300 N m/rad:
+  whether the peg's out-of-plane rotation (which the planar oracle leaves out) matters.
 
 Per variant and world: the late peak F_z (first 5 mm left out) beside the oracle's, the
 fraction of physics steps with both wall sides loaded inside two-point windows (>= 0.9 is the
@@ -57,7 +59,7 @@ CELL = dict(
 LC_MM = 150.0  # the top of the peg: where the oracle's peak is largest
 REPEATS = 2
 
-#: name -> (compensate joint damping, cone fix, float64, step s, pull speed m/s)
+#: name -> (compensate joint damping, cone fix, float64, step s, pull speed m/s, off-axis K_theta)
 VARIANTS = {
     "law and MJX as in the envs (1 ms, float32, 20 mm/s)": (False, False, False, 0.001, 0.02),
     "joint damping cancelled": (True, False, False, 0.001, 0.02),
@@ -66,12 +68,14 @@ VARIANTS = {
     "joint damping cancelled, 5 mm/s": (True, False, False, 0.001, 0.005),
     "joint damping cancelled, cone fix": (True, True, False, 0.001, 0.02),
     "joint damping cancelled, cone fix, 5 mm/s": (True, True, False, 0.001, 0.005),
+    "joint damping cancelled, cone fix, off-axis 300": (True, True, False, 0.001, 0.02, 300.0),
 }
 
 
 def run_variant(name: str) -> dict:
     """Pull the check's worlds under variant ``name``; the row written to the JSON."""
-    comp, fix, x64, dt, speed = VARIANTS[name]
+    comp, fix, x64, dt, speed, *rest = VARIANTS[name]
+    off_axis = rest[0] if rest else None
     import jax
 
     jax.config.update("jax_enable_x64", x64)  # one variant per process (see main)
@@ -84,6 +88,7 @@ def run_variant(name: str) -> dict:
         speed_m_s=speed,
         compensate_joint_damping=comp,
         fix_cone_hessian=fix,
+        off_axis_rotational_stiffness_Nm_rad=off_axis,
     )
     table = sw.cell_table(CELL, REPEATS, 0)
     sel = np.isclose(table["L_C"], LC_MM * 1e-3)
@@ -104,6 +109,7 @@ def run_variant(name: str) -> dict:
         "float64": x64,
         "timestep_s": dt,
         "speed_m_s": speed,
+        "off_axis_rotational_stiffness_Nm_rad": off_axis,
         "peak_fz_late_N": cx.peaks(res, cx.EARLY_MM["rect"])["fz"].tolist(),
         "oracle_peak_fz_late_N": cx.quasi_static_peaks(qs, h0, cx.EARLY_MM["rect"]).tolist(),
         "both_walls_frac_in_two_point": both,

@@ -133,6 +133,9 @@ class ExperimentConfig:
     #: (:mod:`peghole_mjx.mjx_fixes`): the shipped one turned 13 of 48 worlds to NaN at
     #: K_theta 3 N m/rad, the fixed one none
     fix_cone_hessian: bool = True
+    #: rotational stiffness about the compliance frame's x and z axes (the axes other than the
+    #: tilt axis y of the planar oracle), N m/rad; None: the world's K_theta on all three axes
+    off_axis_rotational_stiffness_Nm_rad: float | None = None
 
     def sim_options(self) -> SimOptions:
         """The simulator options in effect: ``sim``, else the project's default options at the
@@ -235,10 +238,12 @@ class Extraction:
     # ---- one world -------------------------------------------------------------------
     def _init_world(self, L_C, delta0, beta0, theta0, k_lat, k_rot):
         kz = self.cfg.axial_stiffness_N_m
+        off = self.cfg.off_axis_rotational_stiffness_Nm_rad
+        k_off = k_rot if off is None else jnp.full_like(k_rot, off)
         params = make_params(
             L_C,
             self.q0,
-            stiffness=jnp.stack([k_lat, k_lat, jnp.full_like(k_lat, kz), k_rot, k_rot, k_rot]),
+            stiffness=jnp.stack([k_lat, k_lat, jnp.full_like(k_lat, kz), k_off, k_rot, k_off]),
         )
         x_C, R = self.ctl.centre_pose(self.dx0, params.L_C)
         # spring rest pose of the quasi-static model (analysis.common.rest_pose), world frame:
