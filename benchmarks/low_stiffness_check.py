@@ -110,7 +110,7 @@ def run_variant(name: str) -> dict:
         "timestep_s": dt,
         "speed_m_s": speed,
         "off_axis_rotational_stiffness_Nm_rad": off_axis,
-        "peak_fz_late_N": cx.peaks(res, cx.EARLY_MM["rect"])["fz"].tolist(),
+        "peak_fz_late_N": _strict(cx.peaks(res, cx.EARLY_MM["rect"])["fz"]),
         "oracle_peak_fz_late_N": cx.quasi_static_peaks(qs, h0, cx.EARLY_MM["rect"]).tolist(),
         "both_walls_frac_in_two_point": both,
         "two_point_samples": tp.sum(1).tolist(),
@@ -118,6 +118,11 @@ def run_variant(name: str) -> dict:
         "penetration_in_hole_um": (res["penetration_in_hole_mm"] * 1e3).tolist(),
         "wall_s": wall,
     }
+
+
+def _strict(a: np.ndarray) -> list[float | None]:
+    """A list for strict JSON: NaN (a NaN world) as null."""
+    return [None if not np.isfinite(v) else float(v) for v in a]
 
 
 def main() -> int:
@@ -147,7 +152,7 @@ def main() -> int:
             "rows": [rows[v] for v in VARIANTS if v in rows],
             **provenance(),
         }
-        write_text(args.out, json.dumps(doc, indent=1) + "\n")
+        write_text(args.out, json.dumps(doc, indent=1, allow_nan=False) + "\n")
     return 0
 
 
