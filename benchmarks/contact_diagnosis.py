@@ -162,7 +162,8 @@ def mjx_vs_c(preset: str = "rect-2", t0_s: float = 0.3, t1_s: float = 0.6) -> di
     sides, and the count of states where C finds a loaded side that MJX misses."""
     import jax
     import jax.numpy as jnp
-    from mujoco import mjx
+
+    from peghole_mjx._mjx import mjx
 
     cfg = cx.ExperimentConfig(
         sim=dataclasses.replace(SimOptions(), timestep=0.001, friction_timeconst=1.0),

@@ -13,8 +13,8 @@ import jax.numpy as jnp
 import mujoco
 import numpy as np
 import pytest
-from mujoco import mjx
 
+from peghole_mjx._mjx import mjx
 from peghole_mjx.control import (
     LIMITS,
     ImpedanceController,
