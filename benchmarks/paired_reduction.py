@@ -1,7 +1,7 @@
 """Per-episode comparison of a policy with the scripted baseline on the same episodes.
 
-    python benchmarks/paired_reduction.py export POLICY_PARTS BASELINE_PARTS --out EPISODES.csv
-    python benchmarks/paired_reduction.py analyse EPISODES.csv --chosen-on 64 --out PAIRED.json
+    python -m benchmarks.paired_reduction export POLICY_PARTS BASELINE_PARTS --out EPISODES.csv
+    python -m benchmarks.paired_reduction analyse EPISODES.csv --chosen-on 64 --out PAIRED.json
 
 ``export`` writes the per-episode records that ``peghole evaluate --parts DIR`` saved
 (``DIR/policy-<sha>-<cfg>/`` and ``DIR/baseline/``) as one CSV row per episode. ``analyse`` gives
