@@ -7,13 +7,15 @@ The MuJoCo C and PyBullet baselines run the NumPy twin of the impedance law,
 from __future__ import annotations
 
 import csv
-import datetime as _dt
 import importlib.metadata
 import os
 import platform
 import resource
 from collections.abc import Iterable, Sequence
 from pathlib import Path
+
+from peghole_mjx.provenance import cpu_device as cpu_device  # re-exported
+from peghole_mjx.provenance import utc_now as utc_now  # re-exported
 
 RESULTS = Path(__file__).resolve().parent / "results"
 
@@ -74,10 +76,6 @@ def versions_str(names: Iterable[str] | None = None) -> str:
     return ";".join(f"{k}={v}" for k, v in versions_dict(names).items())
 
 
-def utc_now() -> str:
-    return _dt.datetime.now(_dt.UTC).strftime("%Y-%m-%dT%H:%M:%SZ")
-
-
 def cpu_label() -> str:
     """``cpu-2core``: the file-name label of this host's CPU."""
     return f"cpu-{os.cpu_count()}core"
@@ -91,11 +89,6 @@ def device_label(kind: str | None) -> str:
         if short in kind.lower().replace(" ", ""):
             return f"gpu-{short}"
     return "gpu-" + "".join(ch for ch in kind.lower() if ch.isalnum())[:16]
-
-
-def cpu_device() -> str:
-    """``cpu (2 cores, x86_64)``, as :func:`peghole_mjx.provenance.device` names a CPU."""
-    return f"cpu ({os.cpu_count()} cores, {platform.machine()})"
 
 
 def max_rss_mb() -> float:

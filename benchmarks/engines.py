@@ -17,7 +17,7 @@ import time
 import numpy as np
 
 from benchmarks.bench_common import SCENE_OVERRIDES, SCENES, cpu_device, max_rss_mb
-from peghole_mjx.control.reference import impedance_torque, rot_from_rotvec
+from peghole_mjx.control.reference import impedance_torque_c, rot_from_rotvec
 
 
 # ----------------------------------------------------------------------------- device
@@ -158,8 +158,6 @@ class CWorlds:
         self.info = [None] * worlds
         for w in range(worlds):
             self.reset(w)
-        self.jacp, self.jacr = np.zeros((3, m.nv)), np.zeros((3, m.nv))
-        self.M = np.zeros((m.nv, m.nv))
         self.record = record
         self.ctrl_log: list[np.ndarray] = []
         self.resets = 0
@@ -193,20 +191,12 @@ class CWorlds:
         self.info[w] = info
 
     def law(self, d, target_pos, target_mat, target_vel, ff) -> np.ndarray:
-        mj, m, ctl = self.mujoco, self.m, self.ctl
-        R = d.xmat[self.body].reshape(3, 3)
-        x_C = d.xpos[self.body] + R @ (ctl.tip_local - np.array([0.0, 0.0, self.L_C]))
-        mj.mj_jac(m, d, self.jacp, self.jacr, x_C, self.body)
-        J = np.vstack([self.jacp, self.jacr])[:, ctl.dadr]
-        mj.mj_fullM(m, d, self.M)
-        tau, _ = impedance_torque(
-            J,
-            self.M[np.ix_(ctl.dadr, ctl.dadr)],
-            d.qfrc_bias[ctl.dadr],
-            d.qpos[ctl.qadr],
-            d.qvel[ctl.dadr],
-            x_C,
-            R,
+        """Joint torques of the NumPy reference law with the env config's gains and caps."""
+        tau, _ = impedance_torque_c(
+            self.ctl,
+            self.m,
+            d,
+            self.L_C,
             target_pos,
             target_mat,
             target_vel,
@@ -215,9 +205,7 @@ class CWorlds:
             ff,
             self.q_null,
             self.null_gains,
-            (*self.c.limits.max_force_N, *self.c.limits.max_torque_Nm),
-            ctl.ctrl_lo,
-            ctl.ctrl_hi,
+            max_wrench=(*self.c.limits.max_force_N, *self.c.limits.max_torque_Nm),
         )
         return tau
 

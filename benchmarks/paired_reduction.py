@@ -15,12 +15,12 @@ from __future__ import annotations
 
 import argparse
 import csv
-import datetime as dt
 import json
 from pathlib import Path
 
 import numpy as np
 
+from peghole_mjx.provenance import utc_now
 from peghole_mjx.training.evaluate import force_reduction_pct
 
 COLUMNS = ("success", "extraction_time_s", "mean_fz_N", "peak_fz_N", "mean_fxy_N")
@@ -89,7 +89,7 @@ def analyse(
         },
         "share_of_episodes_policy_lower": float((p < b).mean()),
         "evaluated_on": evaluated_on,  # the device of the rollouts (this analysis is NumPy)
-        "date": dt.datetime.now(dt.UTC).strftime("%Y-%m-%dT%H:%M:%SZ"),
+        "date": utc_now(),
     }
 
 

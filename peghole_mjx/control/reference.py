@@ -110,10 +110,12 @@ def impedance_torque_c(
     wrench_ff: np.ndarray,
     q_null: np.ndarray,
     null_gains: Sequence[float],
+    max_wrench: Sequence[float] | None = None,
 ) -> tuple[np.ndarray, np.ndarray]:
     """:func:`impedance_torque` on a MuJoCo C state (``mj_forward`` done), compliance centre
-    ``L_C`` (m) above the tip; ids, tip and limits from ``ctl``
-    (:class:`~peghole_mjx.control.impedance.ImpedanceController`)."""
+    ``L_C`` (m) above the tip; ids, tip and torque limits from ``ctl``
+    (:class:`~peghole_mjx.control.impedance.ImpedanceController`), the wrench caps
+    ``max_wrench`` (N, N m) too unless given."""
     R = d.xmat[ctl.body_id].reshape(3, 3)
     x_C = d.xpos[ctl.body_id] + R @ (ctl.tip_local - np.array([0.0, 0.0, L_C]))
     jacp, jacr = np.zeros((3, m.nv)), np.zeros((3, m.nv))
@@ -121,6 +123,8 @@ def impedance_torque_c(
     M = np.zeros((m.nv, m.nv))
     mujoco.mj_fullM(m, d, M)
     lim = ctl.limits
+    if max_wrench is None:
+        max_wrench = (*lim.max_force_N, *lim.max_torque_Nm)
     return impedance_torque(
         np.vstack([jacp, jacr])[:, ctl.dadr],
         M[np.ix_(ctl.dadr, ctl.dadr)],
@@ -137,7 +141,7 @@ def impedance_torque_c(
         wrench_ff,
         q_null,
         null_gains,
-        (*lim.max_force_N, *lim.max_torque_Nm),
+        max_wrench,
         ctl.ctrl_lo,
         ctl.ctrl_hi,
     )
