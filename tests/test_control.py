@@ -242,3 +242,11 @@ def test_numpy_rotvec_roundtrip():
     v = np.array([0.3, -0.2, 0.1])
     np.testing.assert_allclose(ref.rotvec_from_mat(ref.rot_from_rotvec(v)), v, atol=1e-12)
     np.testing.assert_allclose(ref.rotvec_from_mat(np.eye(3)), 0.0)
+    # the NumPy twins equal the JAX helpers of control/kinematics.py
+    from peghole_mjx.control import kinematics as kin
+
+    for w in (v, np.array([0.0, 0.0, 2.5]), np.array([1e-7, 0.0, 0.0])):
+        np.testing.assert_allclose(ref.rot_from_rotvec(w), kin.rot_from_rotvec(w), atol=1e-6)
+        R = ref.rot_from_rotvec(w)
+        np.testing.assert_allclose(ref.rotvec_from_mat(R), kin.rotvec_from_mat(R), atol=1e-6)
+    np.testing.assert_allclose(ref.rot_z(0.7), kin.rot_z(0.7), atol=1e-6)
