@@ -463,7 +463,7 @@ def profile(episodes: int = 32, seed: int = 0) -> dict:
     from peghole_mjx.policies import load_policy
 
     bundle = load_policy("dual")
-    out: dict = {"episodes": episodes, "engine": "mujoco-c (throughput.CWorlds)"}
+    out: dict = {"episodes": episodes, "engine": "mujoco-c (engines.CWorlds)"}
     for rep in ("capsule", "mesh"):
         env = load(
             bundle.env_name, config_overrides={**bundle.env_overrides, "representation": rep}
