@@ -25,8 +25,8 @@ the contact normal forces are summed per oracle contact (peg, mouth or tip, side
 extraction force F_z read from the constraint force on the z slide; each is compared with the
 oracle's lambda and F_z (relative difference).
 
-Run ``python benchmarks/capsule_fidelity.py baseline`` (about 5 minutes on 2 CPU cores) and
-``python benchmarks/capsule_fidelity.py jam``; each writes its part of
+Run ``python -m benchmarks.capsule_fidelity baseline`` (about 5 minutes on 2 CPU cores) and
+``python -m benchmarks.capsule_fidelity jam``; each writes its part of
 ``benchmarks/results/capsule_fidelity.json``.
 """
 
@@ -44,10 +44,8 @@ import numpy as np
 
 HERE = Path(__file__).resolve().parent
 ROOT = HERE.parent
-if str(HERE) not in sys.path:
-    sys.path.insert(0, str(HERE))
 
-from bench_common import RESULTS  # noqa: E402
+from benchmarks.bench_common import RESULTS  # noqa: E402
 
 MESH_EPISODES = RESULTS / "dual_ffdeploy_cpu-2core" / "episodes1024.csv"
 OUT = RESULTS / "capsule_fidelity.json"
@@ -452,20 +450,20 @@ def diagnose(data: dict) -> dict:
 
 def profile(episodes: int = 32, seed: int = 0) -> dict:
     """Where the baseline's extraction force differs: MuJoCo C, the scripted pull in the
-    published dual policy's env (``throughput.CWorlds``, the env's control step with the NumPy
+    published dual policy's env (``engines.CWorlds``, the env's control step with the NumPy
     impedance law), the vertical contact force on the peg summed over contacts after every
     physics step, averaged per phase of the pull: tip deeper than r below the mouth (the
     capsule's rounded end fully inside, both representations alike) and the last r before the
     tip leaves the mouth plus until success (the capsule's rounded end still in the hole, the
     mesh peg's flat tip already out)."""
     import mujoco
-    from throughput import CWorlds, scripted_action
 
+    from benchmarks.engines import CWorlds, scripted_action
     from peghole_mjx.envs import load
     from peghole_mjx.policies import load_policy
 
     bundle = load_policy("dual")
-    out: dict = {"episodes": episodes, "engine": "mujoco-c (throughput.CWorlds)"}
+    out: dict = {"episodes": episodes, "engine": "mujoco-c (engines.CWorlds)"}
     for rep in ("capsule", "mesh"):
         env = load(
             bundle.env_name, config_overrides={**bundle.env_overrides, "representation": rep}

@@ -4,7 +4,7 @@ For each scene and collision representation (rect: box; dual: capsule and mesh) 
 built WITHOUT a contact cap (``contact_cap=0``) and rolled out under the scripted policy
 (straight pull) and a uniformly random policy, in
 
-* MuJoCo C (``throughput.CWorlds``: the env's control step with the NumPy impedance law),
+* MuJoCo C (``engines.CWorlds``: the env's control step with the NumPy impedance law),
   counting the active contacts (distance <= 0) after EVERY physics step, and
 * MJX-JAX (``jit(vmap(env.step))``), counting the active contacts of the contact buffer
   (``dist <= 0``) after every env step (the last of its physics substeps).
@@ -14,7 +14,7 @@ Finished episodes restart. The maximum over worlds, steps, engines and policies 
 margin (``tests/test_envs.py::test_rollouts_stay_below_the_contact_cap`` fails if a capped
 rollout reaches it).
 
-Run ``python benchmarks/contact_caps.py`` (about 10 minutes on 2 CPU cores; the mesh scene's
+Run ``python -m benchmarks.contact_caps`` (about 10 minutes on 2 CPU cores; the mesh scene's
 MJX rollouts are short because its step compiles for minutes and runs at ~100 steps/s);
 writes ``benchmarks/results/contact_caps.json``.
 """
@@ -29,11 +29,7 @@ from pathlib import Path
 
 import numpy as np
 
-HERE = Path(__file__).resolve().parent
-if str(HERE) not in sys.path:
-    sys.path.insert(0, str(HERE))
-
-from bench_common import RESULTS  # noqa: E402
+from benchmarks.bench_common import RESULTS
 
 #: (scene, env, representation) measured
 SCENES = (
@@ -44,7 +40,7 @@ SCENES = (
 
 
 def _policy_action(kind: str, env, rng: np.random.Generator, worlds: int) -> np.ndarray:
-    from throughput import scripted_action
+    from benchmarks.engines import scripted_action
 
     if kind == "scripted":
         return np.broadcast_to(scripted_action(env), (worlds, env.action_size)).copy()
@@ -53,7 +49,7 @@ def _policy_action(kind: str, env, rng: np.random.Generator, worlds: int) -> np.
 
 def count_c(env, policy: str, worlds: int, env_steps: int, seed: int = 0) -> dict:
     """Max active contacts in MuJoCo C after every physics step (closed-loop env control)."""
-    from throughput import CWorlds
+    from benchmarks.engines import CWorlds
 
     cw = CWorlds(env, worlds, seed=seed)
     mj = cw.mujoco

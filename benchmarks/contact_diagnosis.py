@@ -2,7 +2,8 @@
 
 The standard tilted case of ``peghole experiment contact-check`` (rect-2, L_C at the tip,
 K_theta 300 N m/rad, delta0 2 mm, beta0 -0.2 deg, mu 0.266, 20 mm/s) is pulled in MuJoCo C,
-float64, with the NumPy twin of the impedance law (``bench_common.impedance_torque``), under
+float64, with the NumPy twin of the impedance law
+(``peghole_mjx.control.reference.impedance_torque``), under
 contact settings that differ one at a time:
 
 * ``friction``: the frictional rows as stiff as the normal one (MuJoCo's default) or relaxed
@@ -20,8 +21,8 @@ lists the contacts that MuJoCo C and MJX-JAX find from it (``--mjx``).
 
 Writes ``benchmarks/results/contact_diagnosis.json``::
 
-    python benchmarks/contact_diagnosis.py            # MuJoCo C variants (about 1 min)
-    python benchmarks/contact_diagnosis.py --mjx      # plus the MJX-vs-C contact comparison
+    python -m benchmarks.contact_diagnosis            # MuJoCo C variants (about 1 min)
+    python -m benchmarks.contact_diagnosis --mjx      # plus the MJX-vs-C contact comparison
 """
 
 from __future__ import annotations
@@ -37,12 +38,11 @@ from pathlib import Path
 
 import mujoco
 import numpy as np
-
-sys.path.insert(0, str(Path(__file__).resolve().parent))
-from bench_common import RESULTS, impedance_torque, rot_from_rotvec
 from tqdm import tqdm
 
+from benchmarks.bench_common import RESULTS
 from peghole_mjx.control.limits import GAINS, LIMITS
+from peghole_mjx.control.reference import impedance_torque, rot_from_rotvec
 from peghole_mjx.experiments import compliance as cx
 from peghole_mjx.experiments import contact_check as cc
 from peghole_mjx.geometry.mjcf import SimOptions, compile_scene
@@ -162,7 +162,8 @@ def mjx_vs_c(preset: str = "rect-2", t0_s: float = 0.3, t1_s: float = 0.6) -> di
     sides, and the count of states where C finds a loaded side that MJX misses."""
     import jax
     import jax.numpy as jnp
-    from mujoco import mjx
+
+    from peghole_mjx._mjx import mjx
 
     cfg = cx.ExperimentConfig(
         sim=dataclasses.replace(SimOptions(), timestep=0.001, friction_timeconst=1.0),

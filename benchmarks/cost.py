@@ -2,7 +2,7 @@
 
 For RectExtract (box) and DualExtract in each MJX-JAX representation (capsule, mesh):
 
-* ``mjx.Data`` bytes per world and the state-traffic roofline (``throughput.roofline_estimate``);
+* ``mjx.Data`` bytes per world and the state-traffic roofline (``roofline.roofline_estimate``);
 * XLA's cost analysis (bytes accessed and FLOPs) per world, as ``(C(n worlds) - C(1)) / (n-1)``
   of the un-optimised HLO, for
 
@@ -22,7 +22,7 @@ For RectExtract (box) and DualExtract in each MJX-JAX representation (capsule, m
   (``throughput.run_job``, each row a fresh subprocess: mjx-jax at 1 and 8 worlds, the
   throughput sweep's own chunked scan, its compile time), and the capsule/mesh ratio.
 
-Run ``python benchmarks/cost.py --speed --note "..."`` (about 15 minutes on 2 shared CPU cores,
+Run ``python -m benchmarks.cost --speed --note "..."`` (about 15 minutes on 2 shared CPU cores,
 most of it the mesh scene); writes ``benchmarks/results/cost_<device>.json`` and a CSV of the
 speed rows ``cost_<device>_speed.csv``.
 """
@@ -37,23 +37,15 @@ from pathlib import Path
 
 import numpy as np
 
-HERE = Path(__file__).resolve().parent
-if str(HERE) not in sys.path:
-    sys.path.insert(0, str(HERE))
-
-from bench_common import (  # noqa: E402
+from benchmarks.bench_common import (
     RESULTS,
     device_label,
     load_average,
     utc_now,
 )
-from throughput import (  # noqa: E402
-    GPU_BANDWIDTH,
-    gpu_kind,
-    roofline_estimate,
-    run_job,
-    tree_bytes,
-)
+from benchmarks.engines import gpu_kind
+from benchmarks.roofline import GPU_BANDWIDTH, roofline_estimate, tree_bytes
+from benchmarks.throughput import run_job
 
 #: (scene, env name, representation) measured
 VARIANTS = (

@@ -3,7 +3,7 @@
 
 Writes ``benchmarks/results/env_rollouts.json`` (device, versions, date, per env and policy the
 keys of ``peghole envs rollout --json`` plus compile time and steps/s). Run:
-``python benchmarks/env_rollouts.py [--episodes 64]``. Each row names the env's collision
+``python -m benchmarks.env_rollouts [--episodes 64]``. Each row names the env's collision
 representation; rows without one (before 2026-11-29) were measured on the dual mesh scene, then
 the only one.
 """

@@ -9,8 +9,8 @@ stiffness the compliance strategy must modulate to lower the force (docs/trainin
 
 Writes ``benchmarks/results/force_sources_<env>_<device>.json``::
 
-    python benchmarks/force_sources.py                 # RectExtract, 32 episodes per variant
-    python benchmarks/force_sources.py --env dual --episodes 16
+    python -m benchmarks.force_sources                 # RectExtract, 32 episodes per variant
+    python -m benchmarks.force_sources --env dual --episodes 16
 
 The committed dual file was measured on the mesh scene (then the only one): reproduce it with
 ``--representation mesh`` (DualExtract's default is now the capsule scene; docs/models.md,
@@ -21,13 +21,9 @@ from __future__ import annotations
 
 import argparse
 import json
-import sys
 import time
-from pathlib import Path
 
-sys.path.insert(0, str(Path(__file__).resolve().parent))
-from bench_common import RESULTS, cpu_device, cpu_label, utc_now, versions_dict
-
+from benchmarks.bench_common import RESULTS, cpu_device, cpu_label, utc_now, versions_dict
 from peghole_mjx import envs
 from peghole_mjx.control import GAINS
 from peghole_mjx.envs.rollout import SCRIPTED_SPEED_M_S, rollout, scripted_policy

@@ -83,26 +83,26 @@ EOF
 
 # ---------------------------------------------------------------- stages
 if [ "$TINY" = 1 ]; then
-  stage throughput 60 "$PY" benchmarks/throughput.py --engines mujoco-c,mjx-warp \
+  stage throughput 60 "$PY" -m benchmarks.throughput --engines mujoco-c,mjx-warp \
     --scenes rect,dual --worlds 1 --min-time 0.2 --timeout 120 --out "$RES/throughput_tiny.csv" \
     --note "gpu_suite.sh --tiny (CPU smoke test)"
   say "time_to_success, training: skipped in --tiny"
 else
   # the >= 8192-world targets first, the comparison rows after (a cut-off loses the least)
-  stage throughput_targets 35 "$PY" benchmarks/throughput.py --engines mjx-jax,mjx-warp \
+  stage throughput_targets 35 "$PY" -m benchmarks.throughput --engines mjx-jax,mjx-warp \
     --scenes rect,dual --worlds 8192,16384 --min-time 3 --chunk 20 --timeout 150 \
     --out "$RES/throughput_gpu_targets.csv" --note "gpu_suite.sh: target rows"
-  stage throughput_repr 12 "$PY" benchmarks/throughput.py --engines mjx-jax,mjx-warp \
+  stage throughput_repr 12 "$PY" -m benchmarks.throughput --engines mjx-jax,mjx-warp \
     --scenes dual-mesh,dual-cylinder --worlds 8192 --min-time 3 --chunk 20 --timeout 120 \
     --out "$RES/throughput_gpu_representations.csv" --note "gpu_suite.sh: representations"
-  stage throughput_c 6 "$PY" benchmarks/throughput.py --engines mujoco-c-rollout \
+  stage throughput_c 6 "$PY" -m benchmarks.throughput --engines mujoco-c-rollout \
     --scenes rect,dual --worlds 1024 --min-time 3 --timeout 60 \
     --out "$RES/throughput_gpu_mujoco_c.csv" --note "gpu_suite.sh: all-core MuJoCo C"
-  stage sweep 8 "$PY" benchmarks/throughput.py --engines mjx-jax --scenes rect,dual \
+  stage sweep 8 "$PY" -m benchmarks.throughput --engines mjx-jax --scenes rect,dual \
     --worlds 1,64,1024,4096 --min-time 2 --chunk 20 --timeout 60 \
     --out "$RES/throughput_gpu_sweep.csv" --note "gpu_suite.sh: sweep"
-  stage cost 4 "$PY" benchmarks/cost.py --out "$RES/cost_gpu.json" --note "gpu_suite.sh"
-  stage time_to_success 15 "$PY" benchmarks/time_to_success.py --profile full \
+  stage cost 4 "$PY" -m benchmarks.cost --out "$RES/cost_gpu.json" --note "gpu_suite.sh"
+  stage time_to_success 15 "$PY" -m benchmarks.time_to_success --profile full \
     --out /tmp/runs/tts_rect
   for env in RectExtract DualExtract; do
     stage "train_$env" 10 "$PY" train/train.py --env "$env" --profile full \

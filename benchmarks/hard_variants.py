@@ -18,11 +18,11 @@ episodes, seed, success rate with its Wilson 95 % interval, counts by cause, mea
 |F_z|). Slices of ``--batch`` episodes are saved under ``--parts`` as they finish, so an
 interrupted run continues where it stopped::
 
-    python benchmarks/hard_variants.py --env RectExtractHard --episodes 256
-    python benchmarks/hard_variants.py --env DualExtractHard --episodes 256 \\
+    python -m benchmarks.hard_variants --env RectExtractHard --episodes 256
+    python -m benchmarks.hard_variants --env DualExtractHard --episodes 256 \\
         --alt stiffness.k_rot_Nm_rad=30 --alt-episodes 64
     # explore a lever on a default env
-    python benchmarks/hard_variants.py --env RectExtract --episodes 64 --out /tmp/x.json \\
+    python -m benchmarks.hard_variants --env RectExtract --episodes 64 --out /tmp/x.json \\
         --set randomization.angular_error_deg=0.9
 """
 
@@ -33,23 +33,17 @@ import ast
 import hashlib
 import json
 import os
-import sys
 import time
 from pathlib import Path
 
 import numpy as np
 
-HERE = Path(__file__).resolve().parent
-if str(HERE) not in sys.path:
-    sys.path.insert(0, str(HERE))
-
-from bench_common import RESULTS, cpu_label  # noqa: E402
-from capsule_fidelity import wilson  # noqa: E402
-
-import peghole_mjx  # noqa: E402,F401  (sets the XLA CPU flag before JAX starts)
-from peghole_mjx import envs  # noqa: E402
-from peghole_mjx.envs.rollout import rollout, scripted_policy  # noqa: E402
-from peghole_mjx.provenance import provenance  # noqa: E402
+import peghole_mjx  # noqa: F401  (sets the XLA CPU flag before JAX starts)
+from benchmarks.bench_common import RESULTS, cpu_label
+from benchmarks.capsule_fidelity import wilson
+from peghole_mjx import envs
+from peghole_mjx.envs.rollout import rollout, scripted_policy
+from peghole_mjx.provenance import provenance
 
 CAUSES = ("jam", "timeout", "nan", "overflow")
 

@@ -1,7 +1,7 @@
 """Per-episode comparison of a policy with the scripted baseline on the same episodes.
 
-    python benchmarks/paired_reduction.py export POLICY_PARTS BASELINE_PARTS --out EPISODES.csv
-    python benchmarks/paired_reduction.py analyse EPISODES.csv --chosen-on 64 --out PAIRED.json
+    python -m benchmarks.paired_reduction export POLICY_PARTS BASELINE_PARTS --out EPISODES.csv
+    python -m benchmarks.paired_reduction analyse EPISODES.csv --chosen-on 64 --out PAIRED.json
 
 ``export`` writes the per-episode records that ``peghole evaluate --parts DIR`` saved
 (``DIR/policy-<sha>-<cfg>/`` and ``DIR/baseline/``) as one CSV row per episode. ``analyse`` gives
@@ -15,12 +15,12 @@ from __future__ import annotations
 
 import argparse
 import csv
-import datetime as dt
 import json
 from pathlib import Path
 
 import numpy as np
 
+from peghole_mjx.provenance import utc_now
 from peghole_mjx.training.evaluate import force_reduction_pct
 
 COLUMNS = ("success", "extraction_time_s", "mean_fz_N", "peak_fz_N", "mean_fxy_N")
@@ -89,7 +89,7 @@ def analyse(
         },
         "share_of_episodes_policy_lower": float((p < b).mean()),
         "evaluated_on": evaluated_on,  # the device of the rollouts (this analysis is NumPy)
-        "date": dt.datetime.now(dt.UTC).strftime("%Y-%m-%dT%H:%M:%SZ"),
+        "date": utc_now(),
     }
 
 

@@ -7,7 +7,7 @@
   (``train_rect_<device>.json`` from ``benchmarks/time_to_success.py``, "pending" until one
   is committed).
 
-Run: ``python benchmarks/plot.py`` (reads every ``throughput_*.csv`` in the results folder, the
+Run: ``python -m benchmarks.plot`` (reads every ``throughput_*.csv`` in the results folder, the
 ``_quick`` ones excepted unless ``--include-quick``).
 """
 
@@ -18,11 +18,7 @@ import json
 import sys
 from pathlib import Path
 
-HERE = Path(__file__).resolve().parent
-if str(HERE) not in sys.path:
-    sys.path.insert(0, str(HERE))
-
-from bench_common import ENGINES, RESULTS, read_csv  # noqa: E402
+from benchmarks.bench_common import ENGINES, RESULTS, read_csv
 
 #: where "ours" (the Brax SAC stack, peghole_mjx/training) commits its time-to-success result
 #: ours (benchmarks/time_to_success.py), one file per device like the seed stack's

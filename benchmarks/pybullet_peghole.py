@@ -14,12 +14,13 @@ by fixed joints, as on the MJCF robot: the F/T sensor (0.35 kg, 37.5 mm, on the 
 MJCF actuators' (the data-sheet torques), not the URDF's 300 N m.
 
 Impedance: the same Cartesian impedance law with a compliance centre as the MJX envs, run in
-joint-torque control at every 2 ms physics step (:func:`bench_common.impedance_torque`, the
-NumPy port of :class:`peghole_mjx.control.ImpedanceController`): the Jacobian of the compliance
-centre from ``calculateJacobian``, the joint-space inertia from ``calculateMassMatrix``, gravity
-and Coriolis torques from ``calculateInverseDynamics``; PyBullet's velocity motors are switched
-off. Gains: k_xy 300 N/m, k_z 2000 N/m, k_rot 300 N m/rad, critical damping, compliance centre
-at the tip (the env defaults).
+joint-torque control at every 2 ms physics step
+(:func:`peghole_mjx.control.reference.impedance_torque`, the NumPy twin of
+:class:`peghole_mjx.control.ImpedanceController`): the Jacobian of the compliance centre from
+``calculateJacobian``, the joint-space inertia from ``calculateMassMatrix``, gravity and Coriolis
+torques from ``calculateInverseDynamics``; PyBullet's velocity motors are switched off. Gains: k_xy
+300 N/m, k_z 2000 N/m, k_rot 300 N m/rad, critical damping, compliance centre at the tip (the env
+defaults).
 
 Observation (9): flange x, y offset (mm), flange height / peg length, F/T force / 20 N (the
 fixed-joint reaction of the peg, peg weight and the sensor's own offset removed by zeroing at
@@ -43,16 +44,17 @@ from pathlib import Path
 import numpy as np
 
 import peghole_mjx._mjx  # noqa: F401  (quiet mjx import, XLA CPU flag)
+from peghole_mjx.control.reference import (
+    impedance_torque,
+    rot_from_rotvec,
+    rotvec_from_mat,
+)
+from peghole_mjx.control.reference import rot_z as rotz
 from peghole_mjx.envs import get_default_config
 from peghole_mjx.envs.reward import REWARD_WEIGHTS, reward_terms
 from peghole_mjx.geometry.mjcf import ACTUATORS, ROBOT_XML, TOOL_DOWN_MAT
 from peghole_mjx.geometry.parts import hole_parts, peg_parts
 from peghole_mjx.geometry.specs import MM, RectSpec, get_preset
-
-try:  # the benchmark helpers live next to this file
-    from bench_common import impedance_torque, rot_from_rotvec, rotvec_from_mat, rotz
-except ImportError:  # imported as benchmarks.pybullet_peghole
-    from benchmarks.bench_common import impedance_torque, rot_from_rotvec, rotvec_from_mat, rotz
 
 FLANGE_Z_M = 0.045  # media flange along link 7's z (MJCF body "flange")
 FT_HEIGHT_M = 0.0375  # F/T sensor height (MJCF body "tool" above the flange)

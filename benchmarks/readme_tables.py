@@ -3,7 +3,7 @@
 Each table sits between ``<!-- table:NAME -->`` and ``<!-- /table:NAME -->`` markers in the
 Markdown file that :data:`TABLE_FILES` names, so every number in the docs traces to a committed
 result file. Links in a table are written relative to the repository root and rewritten
-relative to the file that holds it. Run: ``python benchmarks/readme_tables.py`` (``--check``
+relative to the file that holds it. Run: ``python -m benchmarks.readme_tables`` (``--check``
 exits 1 if a file is out of date; the test suite runs that check).
 """
 
@@ -17,9 +17,8 @@ from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
 RESULTS = ROOT / "benchmarks" / "results"
-sys.path.insert(0, str(ROOT / "benchmarks"))
 
-from bench_common import ENGINES, read_csv  # noqa: E402
+from benchmarks.bench_common import ENGINES, read_csv  # noqa: E402
 
 
 def models_check() -> str:
@@ -92,7 +91,7 @@ def throughput(results: Path = RESULTS) -> str:
     """One table per device CSV, every row with the command that re-measures it."""
     csvs = throughput_csvs(results)
     if not csvs:
-        return "No throughput results committed yet: run `python benchmarks/throughput.py`."
+        return "No throughput results committed yet: run `python -m benchmarks.throughput`."
     out: list[str] = []
     for path in csvs:
         rows = read_csv(path)
@@ -117,7 +116,7 @@ def throughput(results: Path = RESULTS) -> str:
         ]
         for r in rows:
             cmd = (
-                f"`python benchmarks/throughput.py --engines {r['engine']} --scenes {r['scene']} "
+                f"`python -m benchmarks.throughput --engines {r['engine']} --scenes {r['scene']} "
                 f"--worlds {r['worlds']} --merge`"
             )
             out.append(
@@ -165,7 +164,7 @@ def throughput(results: Path = RESULTS) -> str:
 def roofline() -> str:
     path = RESULTS / "roofline.json"
     if not path.exists():
-        return "No roofline estimate committed yet: `python benchmarks/throughput.py --roofline`."
+        return "No roofline estimate committed yet: `python -m benchmarks.throughput --roofline`."
     r = json.loads(path.read_text())
     lines = [
         f"From [`benchmarks/results/roofline.json`](benchmarks/results/roofline.json) "
@@ -188,8 +187,8 @@ def roofline() -> str:
 
 # the hook for "ours" (the Brax SAC stack, peghole_mjx/training): where its time-to-success
 # JSON is committed and which keys are read, shared with the plot
-from plot import OURS_GLOB  # noqa: E402
-from plot import TIME_KEYS as _TIME_KEYS  # noqa: E402
+from benchmarks.plot import OURS_GLOB  # noqa: E402
+from benchmarks.plot import TIME_KEYS as _TIME_KEYS  # noqa: E402
 
 
 def _tts_row(label: str, path: Path) -> str:
@@ -494,7 +493,7 @@ def force_sources() -> str:
     """The scripted baseline with one setting changed (``benchmarks/force_sources.py``)."""
     paths = sorted(RESULTS.glob("force_sources_*.json"), key=lambda p: "dual" in p.name)
     if not paths:
-        return "Pending: run `python benchmarks/force_sources.py`."
+        return "Pending: run `python -m benchmarks.force_sources`."
     lines = []
     for path in paths:
         d = json.loads(path.read_text())
@@ -519,7 +518,7 @@ def rl_vs_rlcs() -> str:
     """RL vs RL + CS learning runs (``benchmarks/rl_vs_rlcs.py``, thesis Fig 4.5, C4.1)."""
     paths = sorted(RESULTS.glob("rl_vs_rlcs_*.json"))
     if not paths:
-        return "Pending: run `python benchmarks/rl_vs_rlcs.py`."
+        return "Pending: run `python -m benchmarks.rl_vs_rlcs`."
     lines = []
     for path in paths:
         d = json.loads(path.read_text())
@@ -590,7 +589,7 @@ def cost() -> str:
     if speed:
         lines += [
             "",
-            "Side by side in one run (`python benchmarks/cost.py --speed`, each row a fresh "
+            "Side by side in one run (`python -m benchmarks.cost --speed`, each row a fresh "
             "process, the throughput sweep's chunked scan of the env step):",
             "",
             "| scene | representation | worlds | physics steps/s | env steps/s | compile s |",
@@ -700,7 +699,7 @@ def main() -> int:
         else:
             path.write_text(new)
     if stale:
-        print(f"tables out of date in {', '.join(stale)}: run python benchmarks/readme_tables.py")
+        print(f"tables out of date in {', '.join(stale)}: run python -m benchmarks.readme_tables")
         return 1
     return 0
 

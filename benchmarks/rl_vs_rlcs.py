@@ -14,21 +14,18 @@ Usage::
 
     peghole train --env RectExtract --compliance-strategy on  --profile cpu --out runs/rect_cs
     peghole train --env RectExtract --compliance-strategy off --profile cpu --out runs/rect_nocs
-    python benchmarks/rl_vs_rlcs.py --cs runs/rect_cs --no-cs runs/rect_nocs
+    python -m benchmarks.rl_vs_rlcs --cs runs/rect_cs --no-cs runs/rect_nocs
 """
 
 from __future__ import annotations
 
 import argparse
 import json
-import sys
 from pathlib import Path
 
 import numpy as np
 
-sys.path.insert(0, str(Path(__file__).resolve().parent))
-from bench_common import RESULTS, device_label, utc_now, versions_dict
-
+from benchmarks.bench_common import RESULTS, device_label, utc_now, versions_dict
 from peghole_mjx.errors import UserInputError
 from peghole_mjx.training.plots import read_metrics
 

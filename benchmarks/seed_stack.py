@@ -17,7 +17,7 @@ The time to the threshold is known to the evaluation interval (15 s by default).
 Writes ``benchmarks/results/seed_stack_<device>.json`` (device, versions, date, note).
 
 Needs the ``bench`` extra: ``pip install torch==2.13.0`` (CPU wheel) then
-``pip install -e '.[bench]'``. Run: ``python benchmarks/seed_stack.py --budget-s 600
+``pip install -e '.[bench]'``. Run: ``python -m benchmarks.seed_stack --budget-s 600
 --stop-at-threshold`` (without ``--stop-at-threshold`` it trains for the whole budget).
 """
 
@@ -32,11 +32,7 @@ from pathlib import Path
 
 import numpy as np
 
-HERE = Path(__file__).resolve().parent
-if str(HERE) not in sys.path:
-    sys.path.insert(0, str(HERE))
-
-from bench_common import (  # noqa: E402
+from benchmarks.bench_common import (
     RESULTS,
     cpu_device,
     cpu_label,
@@ -157,8 +153,9 @@ def main(argv: list[str] | None = None) -> int:
     args = ap.parse_args(argv)
 
     import torch
-    from pybullet_peghole import make_gym_env
     from stable_baselines3 import SAC
+
+    from benchmarks.pybullet_peghole import make_gym_env
 
     torch.set_num_threads(args.torch_threads)
     env = make_gym_env(seed=args.seed)
@@ -200,7 +197,7 @@ def main(argv: list[str] | None = None) -> int:
         ),
         "load_average_before": load0,
         "load_average_after": load_average(),
-        "command": "python benchmarks/seed_stack.py " + " ".join(sys.argv[1:]),
+        "command": "python -m benchmarks.seed_stack " + " ".join(sys.argv[1:]),
         "sac": {
             **SAC_SETTINGS,
             "gradient_steps": args.gradient_steps,

@@ -11,7 +11,7 @@ the threshold (or at ``--max-steps``). The time is known to the evaluation inter
 
 Writes ``benchmarks/results/train_rect_<device>.json`` (``cpu-2core``, ``gpu-h100``, ...), read by
 ``benchmarks/readme_tables.py`` and ``benchmarks/plot.py``. Run:
-``python benchmarks/time_to_success.py`` (the training run goes to ``--out``).
+``python -m benchmarks.time_to_success`` (the training run goes to ``--out``).
 """
 
 from __future__ import annotations
@@ -19,14 +19,9 @@ from __future__ import annotations
 import argparse
 import csv
 import json
-import sys
 from pathlib import Path
 
-HERE = Path(__file__).resolve().parent
-if str(HERE) not in sys.path:
-    sys.path.insert(0, str(HERE))
-
-from bench_common import RESULTS, device_label, utc_now  # noqa: E402
+from benchmarks.bench_common import RESULTS, device_label, utc_now
 
 THRESHOLD = 0.95
 
@@ -85,7 +80,7 @@ def main(argv: list[str] | None = None) -> int:
         "device": device,
         "versions": prov["versions"],
         "date": utc_now(),
-        "command": "python benchmarks/time_to_success.py"
+        "command": "python -m benchmarks.time_to_success"
         + ("" if args.profile == "auto" else f" --profile {args.profile}"),
         "profile": profile,
         "config": cfg.as_dict(),

@@ -1,8 +1,12 @@
-"""Import :mod:`mujoco.mjx` quietly.
+"""Import :mod:`mujoco.mjx` quietly: every MJX import of the package goes through here.
 
 mujoco-mjx prints ``Failed to import warp: ...`` to STDOUT when warp-lang is not installed
 (the normal case on a CPU machine), which would corrupt ``--json`` output. Importing it once
 through here, early, keeps stdout clean; any other import output still goes to stderr.
+
+``support`` is MJX's private ``mujoco.mjx._src.support`` (point Jacobian, full inertia matrix),
+used by :mod:`peghole_mjx.control.kinematics`; a MuJoCo upgrade that moves it breaks here
+only. (:mod:`peghole_mjx.mjx_fixes` patches ``mujoco.mjx._src.solver`` itself.)
 """
 
 from __future__ import annotations
@@ -14,10 +18,11 @@ import sys
 _buf = io.StringIO()
 with contextlib.redirect_stdout(_buf):
     from mujoco import mjx
+    from mujoco.mjx._src import support
 
 WARP_AVAILABLE = "Failed to import warp" not in _buf.getvalue()
 for _line in _buf.getvalue().splitlines():
     if "import warp" not in _line and "import mujoco_warp" not in _line:
         print(_line, file=sys.stderr)
 
-__all__ = ["WARP_AVAILABLE", "mjx"]
+__all__ = ["WARP_AVAILABLE", "mjx", "support"]

@@ -2,7 +2,8 @@
 
 The CAD pipeline (``peghole models decompose``, :mod:`peghole_mjx.geometry.decompose`) needs
 the ``cad`` extra (coacd, trimesh, manifold3d for trimesh's booleans, rtree for its proximity
-queries); the Gymnasium adapter (:mod:`peghole_mjx.gym`) needs the ``gym`` extra.
+queries); the Gymnasium adapter (:mod:`peghole_mjx.gym`) needs the ``gym`` extra; MuJoCo
+Playground's training wrapper (:mod:`peghole_mjx.envs.playground`) the ``playground`` extra.
 """
 
 from __future__ import annotations
@@ -19,6 +20,7 @@ EXTRAS = {
     "manifold3d": "cad",
     "rtree": "cad",
     "gymnasium": "gym",
+    "mujoco_playground": "playground",
 }
 
 

@@ -31,20 +31,29 @@ def versions() -> dict[str, str]:
     return out
 
 
+def utc_now() -> str:
+    """The current UTC time, ``2026-11-29T04:30:00Z`` (the date of every result file)."""
+    return _dt.datetime.now(_dt.UTC).strftime("%Y-%m-%dT%H:%M:%SZ")
+
+
+def cpu_device() -> str:
+    """The host CPU, ``cpu (2 cores, x86_64)``: the device of a NumPy or MuJoCo C result."""
+    return f"cpu ({os.cpu_count()} cores, {platform.machine()})"
+
+
 def device() -> str:
     """The JAX default device and the host CPU, e.g. ``cpu (2 cores, x86_64)``."""
-    cores = os.cpu_count()
-    host = f"{cores} cores, {platform.machine()}"
+    host = f"{os.cpu_count()} cores, {platform.machine()}"
     try:
         import jax
 
         dev = jax.devices()[0]
         kind = getattr(dev, "device_kind", dev.platform)
         if dev.platform == "cpu":
-            return f"cpu ({host})"
+            return cpu_device()
         return f"{dev.platform}: {kind} x{jax.device_count()} (host {host})"
     except Exception:  # jax missing or broken: still say what the host is
-        return f"cpu ({host})"
+        return cpu_device()
 
 
 def provenance() -> dict[str, object]:
@@ -52,5 +61,5 @@ def provenance() -> dict[str, object]:
     return {
         "device": device(),
         "versions": versions(),
-        "date": _dt.datetime.now(_dt.UTC).strftime("%Y-%m-%dT%H:%M:%SZ"),
+        "date": utc_now(),
     }

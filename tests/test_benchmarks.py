@@ -12,20 +12,23 @@ import mujoco
 import numpy as np
 import pytest
 
+from benchmarks import (
+    bench_common,
+    engines,
+    paired_reduction,
+    plot,
+    readme_tables,
+    rl_vs_rlcs,
+    roofline,
+    throughput,
+)
+from peghole_mjx import envs
+from peghole_mjx.control import ImpedanceController, Target, make_params
+from peghole_mjx.control.reference import rot_from_rotvec
+from peghole_mjx.envs.reward import REWARD_WEIGHTS
+from peghole_mjx.geometry.mjcf import TOOL_DOWN_MAT
+
 ROOT = Path(__file__).resolve().parents[1]
-sys.path.insert(0, str(ROOT / "benchmarks"))
-
-import bench_common  # noqa: E402
-import paired_reduction  # noqa: E402
-import plot  # noqa: E402
-import readme_tables  # noqa: E402
-import rl_vs_rlcs  # noqa: E402
-import throughput  # noqa: E402
-
-from peghole_mjx import envs  # noqa: E402
-from peghole_mjx.control import ImpedanceController, Target, make_params  # noqa: E402
-from peghole_mjx.envs.reward import REWARD_WEIGHTS  # noqa: E402
-from peghole_mjx.geometry.mjcf import TOOL_DOWN_MAT  # noqa: E402
 
 EXPECTED_COLUMNS = [
     "engine",
@@ -77,12 +80,13 @@ def test_csv_writer_has_exactly_the_issue_columns(tmp_path):
 def test_max_rss_sees_this_process_allocating():
     """A fresh process (no earlier peak to hide under) that touches 200 MiB reports it."""
     code = (
-        "import sys, numpy as np; sys.path.insert(0, sys.argv[1]); import bench_common as b;"
+        "import numpy as np; from benchmarks import bench_common as b;"
         "before = b.max_rss_mb(); block = np.ones(200 * 2**20 // 8);"
         "print(before, b.max_rss_mb())"
     )
     out = subprocess.run(
-        [sys.executable, "-c", code, str(ROOT / "benchmarks")],
+        [sys.executable, "-c", code],
+        cwd=ROOT,
         capture_output=True,
         text=True,
         check=True,
@@ -129,14 +133,14 @@ def test_quick_plan_covers_the_acceptance_engines():
 
 # ----------------------------------------------------------------------------- roofline
 def test_roofline_arithmetic():
-    est = throughput.roofline_estimate(10_000, 3.35e12, n_substeps=10)
+    est = roofline.roofline_estimate(10_000, 3.35e12, n_substeps=10)
     assert est["bytes_per_physics_step"] == 20_000
     assert est["max_physics_steps_per_s"] == pytest.approx(1.675e8)
     assert est["max_env_steps_per_s"] == pytest.approx(1.675e7)
     assert "2 x 10000 B" in est["arithmetic"]
-    frac = throughput.roofline_fraction(1.675e7, 10_000, 3.35e12)
+    frac = roofline.roofline_fraction(1.675e7, 10_000, 3.35e12)
     assert frac == pytest.approx(0.1)
-    assert throughput.GPU_BANDWIDTH["H200 (HBM3e)"] / throughput.GPU_BANDWIDTH[
+    assert roofline.GPU_BANDWIDTH["H200 (HBM3e)"] / roofline.GPU_BANDWIDTH[
         "H100 SXM (HBM3)"
     ] == pytest.approx(4.8 / 3.35)
 
@@ -148,7 +152,7 @@ def test_committed_roofline_matches_the_arithmetic():
     r = json.loads(path.read_text())
     for e in r["scenes"].values():
         for gpu, est in e["roofline"].items():
-            bw = throughput.GPU_BANDWIDTH[gpu]
+            bw = roofline.GPU_BANDWIDTH[gpu]
             assert est["max_physics_steps_per_s"] == pytest.approx(
                 bw / (2 * e["mjx_data_bytes_per_world"])
             )
@@ -156,7 +160,7 @@ def test_committed_roofline_matches_the_arithmetic():
 
 def test_tree_bytes_counts_leaves():
     tree = {"a": np.zeros((3, 4), np.float32), "b": [np.zeros(5, np.int32)]}
-    assert throughput.tree_bytes(tree) == 3 * 4 * 4 + 5 * 4
+    assert roofline.tree_bytes(tree) == 3 * 4 * 4 + 5 * 4
 
 
 # ----------------------------------------------------------------------------- the law
@@ -165,8 +169,9 @@ def rect_env():
     return envs.load("RectExtract")
 
 
-def test_numpy_impedance_port_matches_the_jax_law(rect_env):
-    """Same torques from MuJoCo C + NumPy as from MJX + JAX, on one perturbed state."""
+def test_c_benchmark_control_law_matches_the_jax_law(rect_env):
+    """The MuJoCo C engine's law (``engines.CWorlds.law``: the NumPy reference on MuJoCo C
+    arrays, with the env config's gains) gives the JAX law's torques on one perturbed state."""
     from peghole_mjx._mjx import mjx
 
     m = rect_env.mj_model
@@ -175,11 +180,11 @@ def test_numpy_impedance_port_matches_the_jax_law(rect_env):
     rng = np.random.default_rng(0)
     d.qvel[:] = 0.05 * rng.standard_normal(m.nv)
     mujoco.mj_forward(m, d)
-    cw = throughput.CWorlds(rect_env, 1)
+    cw = engines.CWorlds(rect_env, 1)
     ctl = ImpedanceController.from_model(m)
     for scale, L_C in ((1.0, 0.0), (50.0, 0.05)):  # inside the limits, then clipped
         tip = d.xpos[ctl.body_id] + d.xmat[ctl.body_id].reshape(3, 3) @ ctl.tip_local
-        tilt = bench_common.rot_from_rotvec(np.array([0.004, -0.003, 0.002]) * scale)
+        tilt = rot_from_rotvec(np.array([0.004, -0.003, 0.002]) * scale)
         t_mat = tilt @ TOOL_DOWN_MAT
         t_pos = tip + np.array([0.8e-3, -0.5e-3, 2e-3]) * scale - L_C * t_mat[:, 2]
         t_vel = np.array([0.0, 0.0, 0.02])
@@ -199,14 +204,6 @@ def test_numpy_impedance_port_matches_the_jax_law(rect_env):
     assert np.any(np.abs(np.asarray(out.wrench_raw)) > np.abs(np.asarray(out.wrench)) + 1e-6)
 
 
-def test_rotvec_roundtrip():
-    v = np.array([0.3, -0.2, 0.1])
-    np.testing.assert_allclose(
-        bench_common.rotvec_from_mat(bench_common.rot_from_rotvec(v)), v, atol=1e-12
-    )
-    np.testing.assert_allclose(bench_common.rotvec_from_mat(np.eye(3)), 0.0)
-
-
 def test_mujoco_c_control_step_extracts_like_the_mjx_env(rect_env):
     """The scripted pull in MuJoCo C + NumPy takes as long as in MJX (committed rollouts)."""
     committed = json.loads((ROOT / "benchmarks" / "results" / "env_rollouts.json").read_text())
@@ -215,8 +212,8 @@ def test_mujoco_c_control_step_extracts_like_the_mjx_env(rect_env):
         for r in committed["rows"]
         if r["env"] == "RectExtract" and r["policy"] == "scripted"
     )
-    cw = throughput.CWorlds(rect_env, 1, seed=5)
-    a = throughput.scripted_action(rect_env)
+    cw = engines.CWorlds(rect_env, 1, seed=5)
+    a = engines.scripted_action(rect_env)
     steps = 0
     while not cw.step(0, a):
         steps += 1
@@ -230,7 +227,7 @@ def test_mujoco_c_control_step_extracts_like_the_mjx_env(rect_env):
 def pb_env():
     pytest.importorskip("pybullet")
     pytest.importorskip("gymnasium")
-    import pybullet_peghole
+    from benchmarks import pybullet_peghole
 
     env = pybullet_peghole.make_gym_env(seed=0)
     yield env
@@ -434,7 +431,7 @@ def test_jammed_dual_contact_forces_match_the_oracle(monkeypatch):
     """Two-point jam of the dual peg (benchmarks/capsule_fidelity.py jam, one depth, a faster
     pull): the capsule and mesh scenes' mouth and tip contact forces are within 10 % of the
     quasi-static oracle's, and the capsule's extraction force too (MuJoCo C, a few seconds)."""
-    import capsule_fidelity
+    from benchmarks import capsule_fidelity
 
     monkeypatch.setattr(capsule_fidelity, "JAM_DEPTHS_MM", (25.0,))
     out = capsule_fidelity.jam(speed_mm_s=10.0, h0_mm=30.0)

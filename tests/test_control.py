@@ -13,8 +13,8 @@ import jax.numpy as jnp
 import mujoco
 import numpy as np
 import pytest
-from mujoco import mjx
 
+from peghole_mjx._mjx import mjx
 from peghole_mjx.control import (
     LIMITS,
     ImpedanceController,
@@ -193,3 +193,60 @@ def test_compensate_passive_cancels_the_joint_damping(rig):
     expected = m.dof_damping[ctl.dadr] * qvel[ctl.dadr]
     assert np.abs(expected).max() > 1e-3  # the model has joint damping to cancel
     np.testing.assert_allclose(tau1 - tau0, expected, atol=1e-5)
+
+
+def test_numpy_reference_law_equals_the_jax_law_on_random_states():
+    """peghole_mjx.control.reference (NumPy on MuJoCo C arrays) gives the JAX law's torques and
+    wrench on random joint states, targets and gains: inside the wrench limits and clipped."""
+    from peghole_mjx.control.reference import impedance_torque_c, rot_from_rotvec
+
+    m = build_scene(PRESETS["rect-2"]).compile()
+    ctl = ImpedanceController(m)
+    mx = mjx.put_model(m, impl="jax")
+    law = jax.jit(lambda dx, target, p: ctl(mx, dx, target, p))
+    rng = np.random.default_rng(7)
+    d = mujoco.MjData(m)
+    q_null = np.array(m.key("inserted").qpos)[ctl.qadr]
+    clipped = 0
+    for scale in (1.0, 1.0, 30.0, 30.0):
+        mujoco.mj_resetDataKeyframe(m, d, m.key("inserted").id)
+        d.qpos[ctl.qadr] += 0.02 * rng.standard_normal(len(ctl.qadr))
+        d.qvel[ctl.dadr] = 0.1 * rng.standard_normal(len(ctl.dadr))
+        mujoco.mj_forward(m, d)
+        L_C = rng.uniform(0.0, 0.15)
+        R = d.xmat[ctl.body_id].reshape(3, 3)
+        x_C = d.xpos[ctl.body_id] + R @ (ctl.tip_local - np.array([0.0, 0.0, L_C]))
+        t_mat = rot_from_rotvec(1e-3 * scale * rng.standard_normal(3)) @ R
+        t_pos = x_C + 1e-3 * scale * rng.standard_normal(3)
+        t_vel = 0.02 * rng.standard_normal(3)
+        stiff = np.concatenate([rng.uniform(50, 1000, 3), rng.uniform(20, 300, 3)])
+        zeta, ff = rng.uniform(0.5, 1.0), rng.standard_normal(6)
+        null = (rng.uniform(1, 20), rng.uniform(0.1, 2))
+        tau_np, w_np = impedance_torque_c(
+            ctl, m, d, L_C, t_pos, t_mat, t_vel, stiff, zeta, ff, q_null, null
+        )
+        out = law(
+            mjx.put_data(m, d, impl="jax"),
+            Target(jnp.asarray(t_pos), jnp.asarray(t_mat), jnp.asarray(t_vel)),
+            make_params(L_C, q_null, stiff, zeta, ff, null),
+        )
+        np.testing.assert_allclose(w_np, np.asarray(out.wrench), rtol=2e-3, atol=2e-3)
+        np.testing.assert_allclose(tau_np, np.asarray(out.tau), rtol=2e-3, atol=2e-3)
+        clipped += bool(np.any(np.abs(np.asarray(out.wrench_raw)) > np.abs(w_np) + 1e-6))
+    assert clipped >= 1  # the large-error states exercise the wrench clip
+
+
+def test_numpy_rotvec_roundtrip():
+    from peghole_mjx.control import reference as ref
+
+    v = np.array([0.3, -0.2, 0.1])
+    np.testing.assert_allclose(ref.rotvec_from_mat(ref.rot_from_rotvec(v)), v, atol=1e-12)
+    np.testing.assert_allclose(ref.rotvec_from_mat(np.eye(3)), 0.0)
+    # the NumPy twins equal the JAX helpers of control/kinematics.py
+    from peghole_mjx.control import kinematics as kin
+
+    for w in (v, np.array([0.0, 0.0, 2.5]), np.array([1e-7, 0.0, 0.0])):
+        np.testing.assert_allclose(ref.rot_from_rotvec(w), kin.rot_from_rotvec(w), atol=1e-6)
+        R = ref.rot_from_rotvec(w)
+        np.testing.assert_allclose(ref.rotvec_from_mat(R), kin.rotvec_from_mat(R), atol=1e-6)
+    np.testing.assert_allclose(ref.rot_z(0.7), kin.rot_z(0.7), atol=1e-6)

@@ -6,8 +6,8 @@ from pathlib import Path
 import mujoco
 import numpy as np
 import pytest
-from mujoco import mjx
 
+from peghole_mjx._mjx import mjx
 from peghole_mjx.errors import UserInputError
 from peghole_mjx.geometry import mjcf
 from peghole_mjx.geometry.check import (

@@ -11,7 +11,8 @@ ROOT = Path(__file__).resolve().parents[1]
 
 def test_readme_tables_match_committed_results():
     res = subprocess.run(
-        [sys.executable, str(ROOT / "benchmarks" / "readme_tables.py"), "--check"],
+        [sys.executable, "-m", "benchmarks.readme_tables", "--check"],
+        cwd=ROOT,
         capture_output=True,
         text=True,
     )

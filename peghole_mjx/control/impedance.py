@@ -37,8 +37,8 @@ import jax
 import jax.numpy as jnp
 import mujoco
 import numpy as np
-from mujoco import mjx
 
+from peghole_mjx._mjx import mjx
 from peghole_mjx.control.kinematics import full_inertia, point_jacobian, rotvec_from_mat
 from peghole_mjx.control.limits import GAINS, LIMITS, ControlLimits
 from peghole_mjx.geometry.mjcf import ACTUATORS, JOINTS

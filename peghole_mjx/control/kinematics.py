@@ -1,16 +1,16 @@
 """Rotation helpers, MJX Jacobians and the Newton IK used by the impedance law and the envs.
 
 One place for the rotation conventions (rotation vector = axis x angle, rad) and for the one
-call into MJX's private ``mujoco.mjx._src.support`` module (point Jacobian, full inertia
-matrix), so a MuJoCo upgrade that moves it breaks here only.
+use of MJX's private ``mujoco.mjx._src.support`` module (point Jacobian, full inertia
+matrix; imported through :mod:`peghole_mjx._mjx`).
 """
 
 from __future__ import annotations
 
 import jax
 import jax.numpy as jnp
-from mujoco import mjx
-from mujoco.mjx._src import support
+
+from peghole_mjx._mjx import mjx, support
 
 
 def rotvec_from_mat(R: jax.Array) -> jax.Array:

@@ -19,8 +19,8 @@ from dataclasses import asdict, dataclass
 import jax
 import mujoco
 import numpy as np
-from mujoco import mjx
 
+from peghole_mjx._mjx import mjx
 from peghole_mjx.geometry.specs import MM, DualSpec, PegHoleSpec
 
 #: the drop test passes if the tip ends within this distance of the hole bottom

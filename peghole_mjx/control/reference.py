@@ -1,0 +1,147 @@
+"""The impedance law in NumPy: the tested reference twin of the JAX law, for MuJoCo C.
+
+:func:`impedance_torque` is line for line the law of
+:class:`peghole_mjx.control.impedance.ImpedanceController` (same clip, same 1e-9 regulariser of
+the operational-space inertia, same dynamically consistent null-space projector; the module
+docstring of :mod:`peghole_mjx.control.impedance` has the equations), on arrays that MuJoCo C
+computes (``mj_jac``, ``mj_fullM``, ``qfrc_bias``). The MuJoCo C and PyBullet baselines of
+``benchmarks/`` run it at every physics step, so they run the same controller as the MJX envs;
+``tests/test_control.py`` checks it against the JAX law on random states.
+:func:`impedance_torque_c` gathers those arrays from an ``MjData``.
+
+The rotation helpers are the NumPy twins of :mod:`peghole_mjx.control.kinematics` (rotation
+vector = axis x angle, rad).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+
+import mujoco
+import numpy as np
+
+__all__ = ["impedance_torque", "impedance_torque_c", "rot_from_rotvec", "rot_z", "rotvec_from_mat"]
+
+
+def rotvec_from_mat(R: np.ndarray) -> np.ndarray:
+    """Rotation vector (axis * angle, rad) of a rotation matrix; smooth at zero angle."""
+    s = 0.5 * np.array([R[2, 1] - R[1, 2], R[0, 2] - R[2, 0], R[1, 0] - R[0, 1]])
+    sin = np.linalg.norm(s)
+    cos = 0.5 * (np.trace(R) - 1.0)
+    angle = np.arctan2(sin, cos)
+    return s * (angle / sin if sin > 1e-9 else 1.0)
+
+
+def rot_from_rotvec(v: np.ndarray) -> np.ndarray:
+    """Rotation matrix of a rotation vector (rad), Rodrigues' formula."""
+    th = float(np.linalg.norm(v))
+    if th < 1e-12:
+        return np.eye(3)
+    k = np.asarray(v) / th
+    K = np.array([[0.0, -k[2], k[1]], [k[2], 0.0, -k[0]], [-k[1], k[0], 0.0]])
+    return np.eye(3) + np.sin(th) * K + (1 - np.cos(th)) * K @ K
+
+
+def rot_z(a: float) -> np.ndarray:
+    """Rotation by ``a`` (rad) about z."""
+    c, s = np.cos(a), np.sin(a)
+    return np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
+
+
+def impedance_torque(
+    J: np.ndarray,
+    M: np.ndarray,
+    bias: np.ndarray,
+    q: np.ndarray,
+    qvel: np.ndarray,
+    x_C: np.ndarray,
+    R: np.ndarray,
+    target_pos: np.ndarray,
+    target_mat: np.ndarray,
+    target_vel: np.ndarray,
+    stiffness: np.ndarray,
+    damping_ratio: float,
+    wrench_ff: np.ndarray,
+    q_null: np.ndarray,
+    null_gains: Sequence[float],
+    max_wrench: Sequence[float],
+    ctrl_lo: np.ndarray,
+    ctrl_hi: np.ndarray,
+) -> tuple[np.ndarray, np.ndarray]:
+    """Joint torques (N m) and the clipped wrench (N, N m) of the Cartesian impedance law.
+
+    ``J`` (6, n): world translational and rotational Jacobian of the compliance centre ``x_C``
+    on the peg body, ``M`` (n, n) joint-space inertia, ``bias`` (n,) gravity + Coriolis
+    torques, ``R`` the peg body's rotation. The rest as in
+    :class:`peghole_mjx.control.impedance.ImpedanceController`.
+    """
+    Rc = target_mat
+    n = J.shape[1]
+    J_loc = np.vstack([Rc.T @ J[:3], Rc.T @ J[3:]])
+    e_p = Rc.T @ (target_pos - x_C)
+    e_r = Rc.T @ rotvec_from_mat(Rc @ R.T)
+    err = np.concatenate([e_p, e_r])
+    v_loc = J_loc @ qvel
+    v_des = np.concatenate([Rc.T @ target_vel, np.zeros(3)])
+    Minv = np.linalg.inv(M)
+    Lam = np.linalg.inv(J_loc @ Minv @ J_loc.T + 1e-9 * np.eye(6))
+    K = np.asarray(stiffness, float)
+    D = 2.0 * damping_ratio * np.sqrt(K * np.clip(np.diag(Lam), 0.0, None))
+    w_raw = K * err + D * (v_des - v_loc) + wrench_ff
+    cap = np.asarray(max_wrench, float)
+    w = np.clip(w_raw, -cap, cap)
+    Jbar = Minv @ J_loc.T @ Lam
+    NT = np.eye(n) - J_loc.T @ Jbar.T
+    tau0 = null_gains[0] * (q_null - q) - null_gains[1] * qvel
+    tau = J_loc.T @ w + bias + NT @ tau0
+    return np.clip(tau, ctrl_lo, ctrl_hi), w
+
+
+def impedance_torque_c(
+    ctl,
+    m: mujoco.MjModel,
+    d: mujoco.MjData,
+    L_C: float,
+    target_pos: np.ndarray,
+    target_mat: np.ndarray,
+    target_vel: np.ndarray,
+    stiffness: np.ndarray,
+    damping_ratio: float,
+    wrench_ff: np.ndarray,
+    q_null: np.ndarray,
+    null_gains: Sequence[float],
+    max_wrench: Sequence[float] | None = None,
+) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`impedance_torque` on a MuJoCo C state (``mj_forward`` done), compliance centre
+    ``L_C`` (m) above the tip; ids, tip and torque limits from ``ctl``
+    (:class:`~peghole_mjx.control.impedance.ImpedanceController`), the wrench caps
+    ``max_wrench`` (N, N m) too unless given."""
+    R = d.xmat[ctl.body_id].reshape(3, 3)
+    x_C = d.xpos[ctl.body_id] + R @ (ctl.tip_local - np.array([0.0, 0.0, L_C]))
+    jacp, jacr = np.zeros((3, m.nv)), np.zeros((3, m.nv))
+    mujoco.mj_jac(m, d, jacp, jacr, x_C, ctl.body_id)
+    M = np.zeros((m.nv, m.nv))
+    mujoco.mj_fullM(m, d, M)
+    lim = ctl.limits
+    if max_wrench is None:
+        max_wrench = (*lim.max_force_N, *lim.max_torque_Nm)
+    return impedance_torque(
+        np.vstack([jacp, jacr])[:, ctl.dadr],
+        M[np.ix_(ctl.dadr, ctl.dadr)],
+        d.qfrc_bias[ctl.dadr],
+        d.qpos[ctl.qadr],
+        d.qvel[ctl.dadr],
+        x_C,
+        R,
+        target_pos,
+        target_mat,
+        target_vel,
+        stiffness,
+        damping_ratio,
+        wrench_ff,
+        q_null,
+        null_gains,
+        max_wrench,
+        ctl.ctrl_lo,
+        ctl.ctrl_hi,
+    )
