@@ -23,7 +23,7 @@ contact-check bound), NaN, penetration, run time. Writes
 ``benchmarks/results/low_stiffness_check.json``; a variant already in the file is skipped
 (resumable), ``--only NAME`` runs one::
 
-    python benchmarks/low_stiffness_check.py      # all variants, about 40 min on a free core
+    python -m benchmarks.low_stiffness_check     # all variants, about 40 min on a free core
 """
 
 from __future__ import annotations
