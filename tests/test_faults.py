@@ -24,7 +24,7 @@ import pytest
 from peghole_mjx import cli, fileio
 from peghole_mjx.errors import CorruptFileError, UserInputError
 from peghole_mjx.training import checkpoints
-from peghole_mjx.training.config import TrainConfig, load_train_config
+from peghole_mjx.training.config import CONFIG_DIR, TrainConfig, load_train_config
 from peghole_mjx.training.lock import RunLock, _proc_start
 from peghole_mjx.validation import RANGES, dumps, json_safe
 from peghole_mjx.validation import loads as strict_json  # no bare NaN
@@ -414,8 +414,44 @@ def test_training_config_rejects_nonsense(key, value):
 def test_training_config_from_a_damaged_run_json():
     good = load_train_config("RectExtract", "quick").as_dict()
     with pytest.raises(UserInputError, match="lacks the keys"):
-        TrainConfig.from_dict({k: v for k, v in good.items() if k != "tau"})
+        TrainConfig.from_dict({k: v for k, v in good.items() if k != "batch_size"})
     assert TrainConfig.from_dict({**good, "num_timesteps": 1e6}).num_timesteps == 1_000_000
+
+
+def test_train_config_owns_every_default_and_the_cli_agrees_with_python(tmp_path):
+    """TrainConfig holds the shared defaults (compliance strategy on); ``peghole train``
+    without flags and ``load_train_config`` from Python build the same config."""
+    from peghole_mjx.cli import build_parser
+    from peghole_mjx.training.cli import train_config_from_args
+    from peghole_mjx.training.config import default
+
+    assert default("compliance_strategy") is True and default("learning_rate") == 3e-4
+    for env in ("RectExtract", "DualExtract"):
+        raw = json.loads((CONFIG_DIR / f"{env}.json").read_text())
+        assert "common" not in raw  # no second copy of the shared defaults
+        py = load_train_config(env, "quick")
+        assert py.compliance_strategy is True and py.env_overrides["compliance_strategy"] is True
+        assert py.learning_rate == default("learning_rate")
+        argv = ["train", "--env", env, "--quick", "--out", str(tmp_path / "run")]
+        assert train_config_from_args(build_parser().parse_args(argv)) == py
+        off = train_config_from_args(
+            build_parser().parse_args([*argv, "--compliance-strategy", "off"])
+        )
+        assert off == load_train_config(env, "quick", compliance_strategy=False)
+        assert off.env_overrides["compliance_strategy"] is False
+    # env.compliance_strategy is the same setting; a contradiction is refused
+    cfg = load_train_config("RectExtract", "quick", {"env.compliance_strategy": False})
+    assert cfg.compliance_strategy is False
+    with pytest.raises(UserInputError, match="disagree"):
+        load_train_config(
+            "RectExtract", "quick", {"env.compliance_strategy": False}, compliance_strategy=True
+        )
+    # a run.json written before the field resumes with the env override it trained with
+    old = load_train_config("RectExtract", "quick", compliance_strategy=False).as_dict()
+    del old["compliance_strategy"]
+    assert TrainConfig.from_dict(old).compliance_strategy is False
+    with pytest.raises(UserInputError, match="compliance_strategy is True but env_overrides"):
+        TrainConfig.from_dict({**old, "compliance_strategy": True})
 
 
 def test_train_cli_bad_values_are_one_line(tmp_path, capsys):
