@@ -14,9 +14,12 @@ import errno
 import json
 import os
 import shutil
+import signal
 import socket
 import subprocess
 import sys
+import time
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -84,18 +87,22 @@ def fake_checkpoint(ckpt_dir, step: int, fill: float = 1.0):
     def write_files(folder):
         fileio.write_text(folder / "policy.json", json.dumps({"step": step}))
         fileio.write_bytes_with(folder / "params.npz", lambda f: np.savez(f, a=np.ones(3)))
-        arrays = {"leaf_00000": np.full(1000, fill), "leaf_00001": np.arange(5)}
-        fileio.write_bytes_with(folder / "state.npz", lambda f: np.savez(f, **arrays))
-        sched = {"step": step, "wall_s": 1.0, "n_eval": step // 400 + 1}
+        saved = checkpoints.save_state(folder, stand_in_state(fill))
+        sched = {"step": step, "wall_s": 1.0, "n_eval": step // 400 + 1, **saved}
         fileio.write_text(folder / "state.json", json.dumps(sched))
 
     return checkpoints.write(ckpt_dir, step, write_files)
 
 
+def stand_in_state(fill: float = 0.0, n: int = 1000):
+    """A small carry-like tree: nested names, an integer leaf and a zero-size leaf."""
+    return {"ts": {"w": np.full(n, fill), "k": np.arange(5)}, "act": np.zeros((4, 0))}
+
+
 def load_stand_in(path):
-    with np.load(path / "state.npz", allow_pickle=False) as z:
-        arrays = {k: z[k] for k in z.files}
-    return arrays, json.loads((path / "state.json").read_text())
+    sched = json.loads((path / "state.json").read_text())
+    tree = checkpoints.restore_state(path, stand_in_state(), sched.pop("empty_leaves"))
+    return tree, sched
 
 
 def run_folder(tmp_path, steps=(0, 400, 800)):
@@ -227,7 +234,7 @@ def test_corrupt_newest_checkpoint_falls_back_to_the_previous_one(tmp_path, caps
     ckpt = tmp_path / "checkpoints"
     fake_checkpoint(ckpt, 400, fill=4.0)
     newest = fake_checkpoint(ckpt, 800, fill=8.0)
-    state = newest / "state.npz"
+    state = max((p for p in (newest / "state").rglob("*") if p.is_file()), key=os.path.getsize)
     data = bytearray(state.read_bytes())
     if damage == "flipped_byte":
         data[len(data) // 2] ^= 0xFF
@@ -236,12 +243,11 @@ def test_corrupt_newest_checkpoint_falls_back_to_the_previous_one(tmp_path, caps
         state.write_bytes(bytes(data[: len(data) // 2]))
     elif damage == "garbled_json":
         (newest / "state.json").write_text('{"step": 8')
-    else:  # a checkpoint of an older version (no manifest) truncated: np.load finds it out
+    else:  # a state without a manifest is never trusted
         (newest / checkpoints.MANIFEST).unlink()
-        state.write_bytes(bytes(data[: len(data) // 2]))
-    path, (arrays, sched) = checkpoints.newest_valid(ckpt, load_stand_in)
+    path, (tree, sched) = checkpoints.newest_valid(ckpt, load_stand_in)
     assert path.name == "step_0000000400" and sched["step"] == 400
-    assert arrays["leaf_00000"][0] == 4.0
+    assert tree["ts"]["w"][0] == 4.0 and tree["act"].shape == (4, 0)
     assert (ckpt / "step_0000000800.corrupt").is_dir()  # kept for inspection, out of the way
     err = capsys.readouterr().err
     assert "step_0000000800 is corrupt" in err and "falling back" in err
@@ -257,6 +263,85 @@ def test_a_checkpoint_of_another_config_is_refused_not_set_aside(tmp_path):
     with pytest.raises(UserInputError, match="does not match"):
         checkpoints.newest_valid(ckpt, mismatch)
     assert (ckpt / "step_0000000400").is_dir()
+
+
+def test_a_state_of_another_structure_is_refused_by_name_not_by_leaf_order(tmp_path):
+    """A state is restored by tree path: a template with the same number, order and shapes of
+    leaves but other names is refused in one line naming them, as are other shapes."""
+    path = fake_checkpoint(tmp_path / "checkpoints", 400, fill=4.0)
+    empty = json.loads((path / "state.json").read_text())["empty_leaves"]
+    renamed = {"ts": {"v": np.zeros(1000), "k": np.arange(5)}, "act": np.zeros((4, 0))}
+    with pytest.raises(UserInputError) as e:
+        checkpoints.restore_state(path, renamed, empty)
+    msg = str(e.value)
+    assert "\n" not in msg and "missing ts/v" in msg and "unexpected ts/w" in msg
+    with pytest.raises(UserInputError, match=r"another shape or dtype \(e.g. ts/w"):
+        checkpoints.restore_state(path, stand_in_state(n=999), empty)
+    with pytest.raises(UserInputError, match="missing extra"):
+        checkpoints.restore_state(path, {**stand_in_state(), "extra": np.zeros(2)}, empty)
+    tree = checkpoints.restore_state(path, stand_in_state(), empty)
+    assert tree["ts"]["w"][0] == 4.0 and tree["ts"]["k"].dtype == np.arange(5).dtype
+
+
+def test_checkpoints_of_the_positional_npz_format_are_refused_as_not_resumable(tmp_path):
+    old = tmp_path / "checkpoints" / checkpoints.checkpoint_name(400)
+    old.mkdir(parents=True)
+    np.savez(old / "state.npz", leaf_00000=np.ones(3))
+    (old / "state.json").write_text(json.dumps({"step": 400, "wall_s": 1.0, "n_eval": 2}))
+    with pytest.raises(UserInputError, match="positional state.npz.*not resumable"):
+        checkpoints.newest_valid(tmp_path / "checkpoints", load_stand_in)
+    assert old.is_dir()  # left as it is, not set aside
+
+
+_SAVE_FOREVER = """
+import sys, json
+from pathlib import Path
+import numpy as np
+from peghole_mjx import fileio
+from peghole_mjx.training import checkpoints
+ckpt = Path(sys.argv[1])
+step = 400
+while True:
+    def write_files(folder, step=step):
+        tree = {"ts": {"w": np.full(4_000_000, float(step)), "k": np.arange(5)}}
+        saved = checkpoints.save_state(folder, tree)
+        text = json.dumps({"step": step, "wall_s": 1.0, "n_eval": 1, **saved})
+        fileio.write_text(folder / "state.json", text)
+        fileio.write_text(folder / "policy.json", "{}")
+        fileio.write_text(folder / "params.npz", "")
+    checkpoints.write(ckpt, step, write_files)
+    print(step, flush=True)
+    step += 400
+"""
+
+
+def test_kill_9_during_an_orbax_save_leaves_the_previous_checkpoint_restorable(tmp_path):
+    """A process saving 32 MB states in a loop is SIGKILLed while a save is in progress: the
+    newest complete checkpoint restores, holding exactly what was saved at its step."""
+    ckpt = tmp_path / "checkpoints"
+    env = {**os.environ, "PYTHONPATH": str(Path(__file__).resolve().parents[1])}
+    proc = subprocess.Popen(
+        [sys.executable, "-c", _SAVE_FOREVER, str(ckpt)], env=env, stdout=subprocess.PIPE, text=True
+    )
+    try:
+        assert proc.stdout.readline().strip() == "400"  # one complete checkpoint
+        deadline = time.monotonic() + 120
+        while not any(ckpt.glob("*.tmp/state*")):  # the next save has begun writing its state
+            assert time.monotonic() < deadline and proc.poll() is None
+            time.sleep(0.01)
+    finally:
+        proc.send_signal(signal.SIGKILL)
+        proc.wait()
+    template = {"ts": {"w": np.zeros(4_000_000), "k": np.arange(5)}}
+
+    def load(path):
+        sched = json.loads((path / "state.json").read_text())
+        return checkpoints.restore_state(path, template, sched.pop("empty_leaves")), sched
+
+    path, (tree, sched) = checkpoints.newest_valid(ckpt, load)
+    assert tree["ts"]["w"][0] == tree["ts"]["w"][-1] == sched["step"] >= 400
+    assert path.name == checkpoints.checkpoint_name(sched["step"])
+    assert any(p.name.endswith(".tmp") for p in ckpt.iterdir())  # the killed save, ignored
 
 
 # ---------------------------------------------------------------------- 2, 3, 4. resume records
