@@ -755,7 +755,8 @@ def _edit_meta(path, edit):
         ("relabelled", "trained on 'RectExtract'"),
         ("huge_network", "hidden_layer_sizes"),
         ("huge_observation", "observation_size"),
-        ("other_version", "format_version"),
+        ("other_version", "format_version 99 is unknown: this peghole_mjx reads 1 and 2"),
+        ("renamed_array", "missing 0/mean"),
     ],
 )
 def test_damaged_or_foreign_policy_is_refused_before_anything_is_allocated(
@@ -768,11 +769,12 @@ def test_damaged_or_foreign_policy_is_refused_before_anything_is_allocated(
     elif damage == "garbled_params":
         params.write_bytes(np.random.default_rng(0).bytes(len(data)))
     elif damage == "pickled_params":
-        np.savez(params, leaf_0000=np.array([{"x": 1}], dtype=object))
+        np.savez(params, **{"0/mean": np.array([{"x": 1}], dtype=object)})
     elif damage == "nan_params":
         with np.load(params) as z:
             arrays = {k: z[k] for k in z.files}
-        arrays["leaf_0008"] = np.full_like(arrays["leaf_0008"], np.nan)
+        key = sorted(arrays)[-1]  # a network weight
+        arrays[key] = np.full_like(arrays[key], np.nan)
         np.savez(params, **arrays)
     elif damage == "garbled_json":
         meta.write_text('{"format_version": 1, "env": ')
@@ -784,6 +786,10 @@ def test_damaged_or_foreign_policy_is_refused_before_anything_is_allocated(
         _edit_meta(policy_copy, lambda m: m["network"].update(hidden_layer_sizes=[10**9]))
     elif damage == "huge_observation":
         _edit_meta(policy_copy, lambda m: m["network"].update(observation_size=10**12))
+    elif damage == "renamed_array":  # same arrays, one under another name: refused by name
+        with np.load(params) as z:
+            arrays = {("0/average" if k == "0/mean" else k): z[k] for k in z.files}
+        np.savez(params, **arrays)
     else:
         _edit_meta(policy_copy, lambda m: m.update(format_version=99))
     from peghole_mjx.policies import load_policy
@@ -795,6 +801,47 @@ def test_damaged_or_foreign_policy_is_refused_before_anything_is_allocated(
     )
     assert rc == 2
     assert_one_line(err, needle)
+
+
+def _as_format_1(src, dest):
+    """``src`` rewritten in policy format 1: the arrays stored by position (``leaf_0000``...,
+    in tree order), ``format_version`` 1."""
+    dest.mkdir()
+    with np.load(src / "params.npz") as z:
+        arrays = {f"leaf_{i:04d}": z[k] for i, k in enumerate(z.files)}
+    np.savez(dest / "params.npz", **arrays)
+    meta = json.loads((src / "policy.json").read_text())
+    (dest / "policy.json").write_text(json.dumps({**meta, "format_version": 1}, indent=2) + "\n")
+
+
+@pytest.mark.parametrize("name", ["rect", "dual"])
+def test_committed_policy_gives_identical_actions_in_format_1_and_after_the_upgrade(tmp_path, name):
+    """The committed policy (format 2), the same in format 1 (read with the in-loader upgrade)
+    and that copy rewritten by ``upgrade_policy`` give identical actions; the rewritten files
+    equal the committed ones."""
+    import jax
+
+    from peghole_mjx.policies import FORMAT_VERSION, PRETRAINED, load_policy, upgrade_policy
+
+    committed = load_policy(name)
+    assert committed.meta["format_version"] == FORMAT_VERSION == 2
+    old = tmp_path / "v1"
+    _as_format_1(PRETRAINED[name], old)
+    as_v1 = load_policy(old)
+    assert as_v1.meta["format_version"] == 1
+    assert upgrade_policy(old) and not upgrade_policy(old)  # once; then already current
+    upgraded = load_policy(old)
+    obs = np.random.default_rng(0).normal(size=(8, committed.meta["network"]["observation_size"]))
+    act = jax.jit(committed.policy_fn())
+    want = np.asarray(act(committed.params, obs.astype(np.float32), jax.random.PRNGKey(0)))
+    for other in (as_v1, upgraded):
+        got = act(other.params, obs.astype(np.float32), jax.random.PRNGKey(0))
+        np.testing.assert_array_equal(np.asarray(got), want)
+    assert (old / "policy.json").read_text() == (PRETRAINED[name] / "policy.json").read_text()
+    with np.load(old / "params.npz") as a, np.load(PRETRAINED[name] / "params.npz") as b:
+        assert a.files == b.files and all(
+            a[k].dtype == b[k].dtype and np.array_equal(a[k], b[k]) for k in a.files
+        )
 
 
 def test_policy_is_checked_against_the_env_it_runs_in(policy_copy):
