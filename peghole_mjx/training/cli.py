@@ -52,6 +52,14 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
         metavar="KEY=VALUE",
         help="hyperparameter override, e.g. --set num_envs=64; env.KEY=VALUE for the env config",
     )
+    t.add_argument(
+        "--distributed",
+        action="store_true",
+        help="experimental: one of several processes training one learner (jax.distributed; "
+        "coordinator, "
+        "process count and index from JAX_COORDINATOR_ADDRESS, JAX_NUM_PROCESSES, "
+        "JAX_PROCESS_ID or the cluster launcher); give each process its own --out",
+    )
     t.add_argument("--no-progress", action="store_true", help="no progress bar")
     t.add_argument("--no-video", action="store_true", help="skip the final rollout GIF")
     t.add_argument(
@@ -127,6 +135,10 @@ def cmd_train(args: argparse.Namespace) -> int:
     from peghole_mjx.training.lock import RunLock
     from peghole_mjx.training.run import TrainingRun
 
+    if args.distributed:  # before anything of JAX runs
+        from peghole_mjx.training.distributed import initialize
+
+        initialize()
     progress = not args.no_progress
     if args.resume:
         over = dict(args.overrides)
