@@ -14,9 +14,12 @@ import errno
 import json
 import os
 import shutil
+import signal
 import socket
 import subprocess
 import sys
+import time
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -24,7 +27,7 @@ import pytest
 from peghole_mjx import cli, fileio
 from peghole_mjx.errors import CorruptFileError, UserInputError
 from peghole_mjx.training import checkpoints
-from peghole_mjx.training.config import TrainConfig, load_train_config
+from peghole_mjx.training.config import CONFIG_DIR, TrainConfig, load_train_config
 from peghole_mjx.training.lock import RunLock, _proc_start
 from peghole_mjx.validation import RANGES, dumps, json_safe
 from peghole_mjx.validation import loads as strict_json  # no bare NaN
@@ -84,18 +87,22 @@ def fake_checkpoint(ckpt_dir, step: int, fill: float = 1.0):
     def write_files(folder):
         fileio.write_text(folder / "policy.json", json.dumps({"step": step}))
         fileio.write_bytes_with(folder / "params.npz", lambda f: np.savez(f, a=np.ones(3)))
-        arrays = {"leaf_00000": np.full(1000, fill), "leaf_00001": np.arange(5)}
-        fileio.write_bytes_with(folder / "state.npz", lambda f: np.savez(f, **arrays))
-        sched = {"step": step, "wall_s": 1.0, "n_eval": step // 400 + 1}
+        saved = checkpoints.save_state(folder, stand_in_state(fill))
+        sched = {"step": step, "wall_s": 1.0, "n_eval": step // 400 + 1, **saved}
         fileio.write_text(folder / "state.json", json.dumps(sched))
 
     return checkpoints.write(ckpt_dir, step, write_files)
 
 
+def stand_in_state(fill: float = 0.0, n: int = 1000):
+    """A small carry-like tree: nested names, an integer leaf and a zero-size leaf."""
+    return {"ts": {"w": np.full(n, fill), "k": np.arange(5)}, "act": np.zeros((4, 0))}
+
+
 def load_stand_in(path):
-    with np.load(path / "state.npz", allow_pickle=False) as z:
-        arrays = {k: z[k] for k in z.files}
-    return arrays, json.loads((path / "state.json").read_text())
+    sched = json.loads((path / "state.json").read_text())
+    tree = checkpoints.restore_state(path, stand_in_state(), sched.pop("empty_leaves"))
+    return tree, sched
 
 
 def run_folder(tmp_path, steps=(0, 400, 800)):
@@ -227,7 +234,7 @@ def test_corrupt_newest_checkpoint_falls_back_to_the_previous_one(tmp_path, caps
     ckpt = tmp_path / "checkpoints"
     fake_checkpoint(ckpt, 400, fill=4.0)
     newest = fake_checkpoint(ckpt, 800, fill=8.0)
-    state = newest / "state.npz"
+    state = max((p for p in (newest / "state").rglob("*") if p.is_file()), key=os.path.getsize)
     data = bytearray(state.read_bytes())
     if damage == "flipped_byte":
         data[len(data) // 2] ^= 0xFF
@@ -236,12 +243,11 @@ def test_corrupt_newest_checkpoint_falls_back_to_the_previous_one(tmp_path, caps
         state.write_bytes(bytes(data[: len(data) // 2]))
     elif damage == "garbled_json":
         (newest / "state.json").write_text('{"step": 8')
-    else:  # a checkpoint of an older version (no manifest) truncated: np.load finds it out
+    else:  # a state without a manifest is never trusted
         (newest / checkpoints.MANIFEST).unlink()
-        state.write_bytes(bytes(data[: len(data) // 2]))
-    path, (arrays, sched) = checkpoints.newest_valid(ckpt, load_stand_in)
+    path, (tree, sched) = checkpoints.newest_valid(ckpt, load_stand_in)
     assert path.name == "step_0000000400" and sched["step"] == 400
-    assert arrays["leaf_00000"][0] == 4.0
+    assert tree["ts"]["w"][0] == 4.0 and tree["act"].shape == (4, 0)
     assert (ckpt / "step_0000000800.corrupt").is_dir()  # kept for inspection, out of the way
     err = capsys.readouterr().err
     assert "step_0000000800 is corrupt" in err and "falling back" in err
@@ -257,6 +263,85 @@ def test_a_checkpoint_of_another_config_is_refused_not_set_aside(tmp_path):
     with pytest.raises(UserInputError, match="does not match"):
         checkpoints.newest_valid(ckpt, mismatch)
     assert (ckpt / "step_0000000400").is_dir()
+
+
+def test_a_state_of_another_structure_is_refused_by_name_not_by_leaf_order(tmp_path):
+    """A state is restored by tree path: a template with the same number, order and shapes of
+    leaves but other names is refused in one line naming them, as are other shapes."""
+    path = fake_checkpoint(tmp_path / "checkpoints", 400, fill=4.0)
+    empty = json.loads((path / "state.json").read_text())["empty_leaves"]
+    renamed = {"ts": {"v": np.zeros(1000), "k": np.arange(5)}, "act": np.zeros((4, 0))}
+    with pytest.raises(UserInputError) as e:
+        checkpoints.restore_state(path, renamed, empty)
+    msg = str(e.value)
+    assert "\n" not in msg and "missing ts/v" in msg and "unexpected ts/w" in msg
+    with pytest.raises(UserInputError, match=r"another shape or dtype \(e.g. ts/w"):
+        checkpoints.restore_state(path, stand_in_state(n=999), empty)
+    with pytest.raises(UserInputError, match="missing extra"):
+        checkpoints.restore_state(path, {**stand_in_state(), "extra": np.zeros(2)}, empty)
+    tree = checkpoints.restore_state(path, stand_in_state(), empty)
+    assert tree["ts"]["w"][0] == 4.0 and tree["ts"]["k"].dtype == np.arange(5).dtype
+
+
+def test_checkpoints_of_the_positional_npz_format_are_refused_as_not_resumable(tmp_path):
+    old = tmp_path / "checkpoints" / checkpoints.checkpoint_name(400)
+    old.mkdir(parents=True)
+    np.savez(old / "state.npz", leaf_00000=np.ones(3))
+    (old / "state.json").write_text(json.dumps({"step": 400, "wall_s": 1.0, "n_eval": 2}))
+    with pytest.raises(UserInputError, match="positional state.npz.*not resumable"):
+        checkpoints.newest_valid(tmp_path / "checkpoints", load_stand_in)
+    assert old.is_dir()  # left as it is, not set aside
+
+
+_SAVE_FOREVER = """
+import sys, json
+from pathlib import Path
+import numpy as np
+from peghole_mjx import fileio
+from peghole_mjx.training import checkpoints
+ckpt = Path(sys.argv[1])
+step = 400
+while True:
+    def write_files(folder, step=step):
+        tree = {"ts": {"w": np.full(4_000_000, float(step)), "k": np.arange(5)}}
+        saved = checkpoints.save_state(folder, tree)
+        text = json.dumps({"step": step, "wall_s": 1.0, "n_eval": 1, **saved})
+        fileio.write_text(folder / "state.json", text)
+        fileio.write_text(folder / "policy.json", "{}")
+        fileio.write_text(folder / "params.npz", "")
+    checkpoints.write(ckpt, step, write_files)
+    print(step, flush=True)
+    step += 400
+"""
+
+
+def test_kill_9_during_an_orbax_save_leaves_the_previous_checkpoint_restorable(tmp_path):
+    """A process saving 32 MB states in a loop is SIGKILLed while a save is in progress: the
+    newest complete checkpoint restores, holding exactly what was saved at its step."""
+    ckpt = tmp_path / "checkpoints"
+    env = {**os.environ, "PYTHONPATH": str(Path(__file__).resolve().parents[1])}
+    proc = subprocess.Popen(
+        [sys.executable, "-c", _SAVE_FOREVER, str(ckpt)], env=env, stdout=subprocess.PIPE, text=True
+    )
+    try:
+        assert proc.stdout.readline().strip() == "400"  # one complete checkpoint
+        deadline = time.monotonic() + 120
+        while not any(ckpt.glob("*.tmp/state*")):  # the next save has begun writing its state
+            assert time.monotonic() < deadline and proc.poll() is None
+            time.sleep(0.01)
+    finally:
+        proc.send_signal(signal.SIGKILL)
+        proc.wait()
+    template = {"ts": {"w": np.zeros(4_000_000), "k": np.arange(5)}}
+
+    def load(path):
+        sched = json.loads((path / "state.json").read_text())
+        return checkpoints.restore_state(path, template, sched.pop("empty_leaves")), sched
+
+    path, (tree, sched) = checkpoints.newest_valid(ckpt, load)
+    assert tree["ts"]["w"][0] == tree["ts"]["w"][-1] == sched["step"] >= 400
+    assert path.name == checkpoints.checkpoint_name(sched["step"])
+    assert any(p.name.endswith(".tmp") for p in ckpt.iterdir())  # the killed save, ignored
 
 
 # ---------------------------------------------------------------------- 2, 3, 4. resume records
@@ -414,8 +499,44 @@ def test_training_config_rejects_nonsense(key, value):
 def test_training_config_from_a_damaged_run_json():
     good = load_train_config("RectExtract", "quick").as_dict()
     with pytest.raises(UserInputError, match="lacks the keys"):
-        TrainConfig.from_dict({k: v for k, v in good.items() if k != "tau"})
+        TrainConfig.from_dict({k: v for k, v in good.items() if k != "batch_size"})
     assert TrainConfig.from_dict({**good, "num_timesteps": 1e6}).num_timesteps == 1_000_000
+
+
+def test_train_config_owns_every_default_and_the_cli_agrees_with_python(tmp_path):
+    """TrainConfig holds the shared defaults (compliance strategy on); ``peghole train``
+    without flags and ``load_train_config`` from Python build the same config."""
+    from peghole_mjx.cli import build_parser
+    from peghole_mjx.training.cli import train_config_from_args
+    from peghole_mjx.training.config import default
+
+    assert default("compliance_strategy") is True and default("learning_rate") == 3e-4
+    for env in ("RectExtract", "DualExtract"):
+        raw = json.loads((CONFIG_DIR / f"{env}.json").read_text())
+        assert "common" not in raw  # no second copy of the shared defaults
+        py = load_train_config(env, "quick")
+        assert py.compliance_strategy is True and py.env_overrides["compliance_strategy"] is True
+        assert py.learning_rate == default("learning_rate")
+        argv = ["train", "--env", env, "--quick", "--out", str(tmp_path / "run")]
+        assert train_config_from_args(build_parser().parse_args(argv)) == py
+        off = train_config_from_args(
+            build_parser().parse_args([*argv, "--compliance-strategy", "off"])
+        )
+        assert off == load_train_config(env, "quick", compliance_strategy=False)
+        assert off.env_overrides["compliance_strategy"] is False
+    # env.compliance_strategy is the same setting; a contradiction is refused
+    cfg = load_train_config("RectExtract", "quick", {"env.compliance_strategy": False})
+    assert cfg.compliance_strategy is False
+    with pytest.raises(UserInputError, match="disagree"):
+        load_train_config(
+            "RectExtract", "quick", {"env.compliance_strategy": False}, compliance_strategy=True
+        )
+    # a run.json written before the field resumes with the env override it trained with
+    old = load_train_config("RectExtract", "quick", compliance_strategy=False).as_dict()
+    del old["compliance_strategy"]
+    assert TrainConfig.from_dict(old).compliance_strategy is False
+    with pytest.raises(UserInputError, match="compliance_strategy is True but env_overrides"):
+        TrainConfig.from_dict({**old, "compliance_strategy": True})
 
 
 def test_train_cli_bad_values_are_one_line(tmp_path, capsys):
@@ -634,7 +755,8 @@ def _edit_meta(path, edit):
         ("relabelled", "trained on 'RectExtract'"),
         ("huge_network", "hidden_layer_sizes"),
         ("huge_observation", "observation_size"),
-        ("other_version", "format_version"),
+        ("other_version", "format_version 99 is unknown: this peghole_mjx reads 1 and 2"),
+        ("renamed_array", "missing 0/mean"),
     ],
 )
 def test_damaged_or_foreign_policy_is_refused_before_anything_is_allocated(
@@ -647,11 +769,12 @@ def test_damaged_or_foreign_policy_is_refused_before_anything_is_allocated(
     elif damage == "garbled_params":
         params.write_bytes(np.random.default_rng(0).bytes(len(data)))
     elif damage == "pickled_params":
-        np.savez(params, leaf_0000=np.array([{"x": 1}], dtype=object))
+        np.savez(params, **{"0/mean": np.array([{"x": 1}], dtype=object)})
     elif damage == "nan_params":
         with np.load(params) as z:
             arrays = {k: z[k] for k in z.files}
-        arrays["leaf_0008"] = np.full_like(arrays["leaf_0008"], np.nan)
+        key = sorted(arrays)[-1]  # a network weight
+        arrays[key] = np.full_like(arrays[key], np.nan)
         np.savez(params, **arrays)
     elif damage == "garbled_json":
         meta.write_text('{"format_version": 1, "env": ')
@@ -663,6 +786,10 @@ def test_damaged_or_foreign_policy_is_refused_before_anything_is_allocated(
         _edit_meta(policy_copy, lambda m: m["network"].update(hidden_layer_sizes=[10**9]))
     elif damage == "huge_observation":
         _edit_meta(policy_copy, lambda m: m["network"].update(observation_size=10**12))
+    elif damage == "renamed_array":  # same arrays, one under another name: refused by name
+        with np.load(params) as z:
+            arrays = {("0/average" if k == "0/mean" else k): z[k] for k in z.files}
+        np.savez(params, **arrays)
     else:
         _edit_meta(policy_copy, lambda m: m.update(format_version=99))
     from peghole_mjx.policies import load_policy
@@ -674,6 +801,47 @@ def test_damaged_or_foreign_policy_is_refused_before_anything_is_allocated(
     )
     assert rc == 2
     assert_one_line(err, needle)
+
+
+def _as_format_1(src, dest):
+    """``src`` rewritten in policy format 1: the arrays stored by position (``leaf_0000``...,
+    in tree order), ``format_version`` 1."""
+    dest.mkdir()
+    with np.load(src / "params.npz") as z:
+        arrays = {f"leaf_{i:04d}": z[k] for i, k in enumerate(z.files)}
+    np.savez(dest / "params.npz", **arrays)
+    meta = json.loads((src / "policy.json").read_text())
+    (dest / "policy.json").write_text(json.dumps({**meta, "format_version": 1}, indent=2) + "\n")
+
+
+@pytest.mark.parametrize("name", ["rect", "dual"])
+def test_committed_policy_gives_identical_actions_in_format_1_and_after_the_upgrade(tmp_path, name):
+    """The committed policy (format 2), the same in format 1 (read with the in-loader upgrade)
+    and that copy rewritten by ``upgrade_policy`` give identical actions; the rewritten files
+    equal the committed ones."""
+    import jax
+
+    from peghole_mjx.policies import FORMAT_VERSION, PRETRAINED, load_policy, upgrade_policy
+
+    committed = load_policy(name)
+    assert committed.meta["format_version"] == FORMAT_VERSION == 2
+    old = tmp_path / "v1"
+    _as_format_1(PRETRAINED[name], old)
+    as_v1 = load_policy(old)
+    assert as_v1.meta["format_version"] == 1
+    assert upgrade_policy(old) and not upgrade_policy(old)  # once; then already current
+    upgraded = load_policy(old)
+    obs = np.random.default_rng(0).normal(size=(8, committed.meta["network"]["observation_size"]))
+    act = jax.jit(committed.policy_fn())
+    want = np.asarray(act(committed.params, obs.astype(np.float32), jax.random.PRNGKey(0)))
+    for other in (as_v1, upgraded):
+        got = act(other.params, obs.astype(np.float32), jax.random.PRNGKey(0))
+        np.testing.assert_array_equal(np.asarray(got), want)
+    assert (old / "policy.json").read_text() == (PRETRAINED[name] / "policy.json").read_text()
+    with np.load(old / "params.npz") as a, np.load(PRETRAINED[name] / "params.npz") as b:
+        assert a.files == b.files and all(
+            a[k].dtype == b[k].dtype and np.array_equal(a[k], b[k]) for k in a.files
+        )
 
 
 def test_policy_is_checked_against_the_env_it_runs_in(policy_copy):

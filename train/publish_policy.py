@@ -151,7 +151,7 @@ def main() -> int:
     )
     args = ap.parse_args()
 
-    from peghole_mjx.policies import PRETRAINED
+    from peghole_mjx.policies import PRETRAINED, upgrade_policy
     from peghole_mjx.training.evaluate import evaluate
 
     if args.screen > 0:
@@ -168,6 +168,7 @@ def main() -> int:
     dest.mkdir(parents=True)
     shutil.copy2(src / "params.npz", dest / "params.npz")
     (dest / "policy.json").write_text(json.dumps(meta, indent=2) + "\n")
+    upgrade_policy(dest)  # a checkpoint of an older policy format is published as the current
     for f in ("metrics.csv", "curves.png", "summary.json"):
         if (args.run / f).exists():
             shutil.copy2(args.run / f, dest / f)

@@ -103,7 +103,9 @@ class PegHoleBase:
             # only with nativeccd off; the cylinder representation's cylinder-box pairs go
             # through GJK/EPA either way
             m.opt.disableflags |= mujoco.mjtDisableBit.mjDSBL_NATIVECCD
-        self._mjx_model = mjx.put_model(m, impl=config.impl)
+        # on this process's first device: MJX's default, jax.devices()[0], belongs to process
+        # 0 when several processes train together (training/distributed.py)
+        self._mjx_model = mjx.put_model(m, impl=config.impl, device=jax.local_devices()[0])
         limits = ControlLimits(
             max_force_N=tuple(config.limits.max_force_N),
             max_torque_Nm=tuple(config.limits.max_torque_Nm),

@@ -9,7 +9,14 @@ A policy directory holds two files:
   training env (e.g. a tighter force bound), with the trained values
   (``train/publish_policy.py --deploy-set``);
 * ``params.npz``: the observation normaliser and the policy network's parameters (Brax SAC
-  layout, leaves in tree order).
+  layout), one array per leaf named by its tree path (``0/mean``, ``1/params/hidden_0/kernel``;
+  :mod:`peghole_mjx.treenames`).
+
+``policy.json`` carries ``format_version`` (:data:`FORMAT_VERSION`, docs/training.md, "Policy
+format"): 2 names the arrays by tree path and loads them by name; 1 (before 2026-11-29) stored
+them by position (``leaf_0000``...) and is upgraded when loaded (:func:`upgrade_policy`
+rewrites a folder as 2: ``python train/upgrade_policy.py DIR``); any other version is refused
+in one line.
 
 Pretrained policies (``PRETRAINED``) are addressed by name (``rect``, ``dual``) or by path.
 """
@@ -29,11 +36,15 @@ import jax.numpy as jnp
 import numpy as np
 
 from peghole_mjx.errors import CorruptFileError, UserInputError
+from peghole_mjx.treenames import differences, named_leaves
 
 POLICY_DIR = Path(__file__).resolve().parent
 #: committed pretrained policies: name -> directory inside the package
 PRETRAINED = {"rect": POLICY_DIR / "rect_extract", "dual": POLICY_DIR / "dual_extract"}
-FORMAT_VERSION = 1
+#: the format ``save_policy`` writes
+FORMAT_VERSION = 2
+#: formats ``load_policy`` reads (1: positional arrays, upgraded on load)
+READABLE_VERSIONS = (1, 2)
 
 
 @dataclass
@@ -141,10 +152,12 @@ def save_policy(path: str | Path, params, meta: dict[str, Any], atomic: bool = T
     if atomic and target.exists():
         shutil.rmtree(target)
     target.mkdir(parents=True, exist_ok=True)
-    leaves = jax.tree.leaves(jax.device_get(params))
-    arrays = {f"leaf_{i:04d}": np.asarray(x) for i, x in enumerate(leaves)}
+    arrays = named_leaves(params)
     fileio.write_bytes_with(target / "params.npz", lambda f: np.savez(f, **arrays))
-    meta = {"format_version": FORMAT_VERSION, **meta}
+    meta = {
+        "format_version": FORMAT_VERSION,
+        **{k: v for k, v in meta.items() if k != "format_version"},
+    }
     text = json.dumps(meta, indent=2, default=_json_default) + "\n"
     fileio.write_text(target / "policy.json", text)
     if atomic:
@@ -197,9 +210,11 @@ def check_meta(meta: Any, where: str) -> dict[str, Any]:
             raise CorruptFileError(f"{where}: {what}")
 
     need(isinstance(meta, dict), "not a JSON object")
+    version = meta.get("format_version")
     need(
-        meta.get("format_version") == FORMAT_VERSION,
-        f"format_version {meta.get('format_version')!r}, this peghole_mjx reads {FORMAT_VERSION}",
+        version in READABLE_VERSIONS and isinstance(version, int),
+        f"format_version {version!r} is unknown: this peghole_mjx reads "
+        f"{' and '.join(map(str, READABLE_VERSIONS))}",
     )
     env = meta.get("env")
     need(env in ALL_ENVS, f"env {env!r} is not one of {list(ALL_ENVS)}")
@@ -236,38 +251,82 @@ def load_policy(name: str | Path) -> PolicyBundle:
     ``params.npz`` must hold exactly the network's arrays, as finite floats.
     """
     path = resolve_policy_path(name)
+    meta, arrays = _read(path)
+    treedef = jax.tree.structure(init_params(meta["network"]))
+    params = jax.tree.unflatten(treedef, [jnp.asarray(x) for x in arrays.values()])
+    return PolicyBundle(path=path, meta=meta, params=params)
+
+
+def _read(path: Path) -> tuple[dict[str, Any], dict[str, np.ndarray]]:
+    """``policy.json`` (schema-checked) and the arrays of ``params.npz`` by tree path, in the
+    network's tree order (format 1 upgraded), each checked: finite numbers, expected shapes."""
     try:
         meta = json.loads((path / "policy.json").read_text())
     except (ValueError, UnicodeDecodeError) as exc:
         raise CorruptFileError(f"{path}/policy.json is not valid JSON ({exc})") from None
     check_meta(meta, f"{path}/policy.json")
-    template = init_params(meta["network"])
-    treedef = jax.tree.structure(template)
-    tleaves = jax.tree.leaves(template)
+    want = named_leaves(init_params(meta["network"]))
     try:
         with np.load(path / "params.npz", allow_pickle=False) as z:
-            names = [f"leaf_{i:04d}" for i in range(len(z.files))]
-            if sorted(z.files) != names:
-                raise CorruptFileError(f"{path}/params.npz holds unexpected arrays")
-            leaves = [z[n] for n in names]
+            arrays = {n: z[n] for n in z.files}
     except (zipfile.BadZipFile, EOFError, ValueError, OSError) as exc:
-        if isinstance(exc, (CorruptFileError, FileNotFoundError)):
+        if isinstance(exc, FileNotFoundError):
             raise
         raise CorruptFileError(f"{path}/params.npz is unreadable ({exc})") from None
-    if len(leaves) != len(tleaves) or any(
-        a.shape != np.shape(b) for a, b in zip(leaves, tleaves, strict=True)
+    if meta["format_version"] == 1:
+        arrays = _upgrade_arrays(arrays, want, path)
+    problems = differences(
+        {k: np.shape(v) for k, v in arrays.items()}, {k: np.shape(v) for k, v in want.items()}
+    )
+    if problems:
+        raise CorruptFileError(
+            f"{path}/params.npz does not match the network in policy.json ({'; '.join(problems)})"
+        )
+    for k, x in arrays.items():
+        if not np.issubdtype(x.dtype, np.floating) and not np.issubdtype(x.dtype, np.integer):
+            raise CorruptFileError(f"{path}/params.npz: array {k} has dtype {x.dtype}")
+        if np.issubdtype(x.dtype, np.floating) and not np.all(np.isfinite(x)):
+            raise CorruptFileError(f"{path}/params.npz: array {k} holds NaN or infinity")
+    return meta, {k: arrays[k] for k in want}
+
+
+def _upgrade_arrays(arrays: dict[str, Any], want: dict[str, Any], path: Path) -> dict[str, Any]:
+    """Format 1's positional arrays (``leaf_0000``...) named by the tree paths of the network
+    in ``policy.json`` (``want``, in tree order), after checking their count and shapes."""
+    names = [f"leaf_{i:04d}" for i in range(len(arrays))]
+    if sorted(arrays) != names:
+        raise CorruptFileError(f"{path}/params.npz holds unexpected arrays")
+    if len(names) != len(want) or any(
+        np.shape(arrays[n]) != np.shape(w) for n, w in zip(names, want.values(), strict=True)
     ):
         raise CorruptFileError(
             f"{path}/params.npz does not match the network in policy.json "
-            f"({len(leaves)} arrays vs {len(tleaves)} expected)"
+            f"({len(names)} arrays vs {len(want)} expected)"
         )
-    for i, x in enumerate(leaves):
-        if not np.issubdtype(x.dtype, np.floating) and not np.issubdtype(x.dtype, np.integer):
-            raise CorruptFileError(f"{path}/params.npz: array {i} has dtype {x.dtype}")
-        if np.issubdtype(x.dtype, np.floating) and not np.all(np.isfinite(x)):
-            raise CorruptFileError(f"{path}/params.npz: array {i} holds NaN or infinity")
-    params = jax.tree.unflatten(treedef, [jnp.asarray(x) for x in leaves])
-    return PolicyBundle(path=path, meta=meta, params=params)
+    return {k: arrays[n] for k, n in zip(want, names, strict=True)}
+
+
+def upgrade_policy(path: str | Path) -> bool:
+    """Rewrite the policy folder ``path`` in the current format (:data:`FORMAT_VERSION`),
+    arrays unchanged bit for bit, the rest of ``policy.json`` as it was; other files in the
+    folder are kept. The folder is rewritten as a copy that then replaces it (all or
+    nothing). Returns False when it already was current."""
+    from peghole_mjx import fileio
+
+    path = Path(path)
+    meta, arrays = _read(path)
+    if meta["format_version"] == FORMAT_VERSION:
+        return False
+    tmp = path.with_name(path.name + ".tmp")
+    if tmp.exists():
+        shutil.rmtree(tmp)
+    shutil.copytree(path, tmp)
+    fileio.write_bytes_with(tmp / "params.npz", lambda f: np.savez(f, **arrays))
+    meta = {**meta, "format_version": FORMAT_VERSION}
+    text = json.dumps(meta, indent=2, default=_json_default) + "\n"
+    fileio.write_text(tmp / "policy.json", text)
+    fileio.replace_dir(tmp, path)
+    return True
 
 
 __all__ = [
@@ -280,4 +339,5 @@ __all__ = [
     "make_policy_fn",
     "resolve_policy_path",
     "save_policy",
+    "upgrade_policy",
 ]

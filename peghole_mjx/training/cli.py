@@ -20,6 +20,7 @@ def _override(text: str) -> tuple[str, object]:
 
 def add_parser(sub: argparse._SubParsersAction) -> None:
     from peghole_mjx.envs import ALL_ENVS
+    from peghole_mjx.training.config import default
 
     t = sub.add_parser(
         "train",
@@ -33,9 +34,10 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     t.add_argument(
         "--compliance-strategy",
         choices=("on", "off"),
-        default="on",
+        default=None,
         help="on: the action also sets the lateral stiffness k_xy and the rotational stiffness "
-        "K_theta (RL + CS, thesis Sec 4.2; docs/training.md); off: fixed stiffness (default: on)",
+        "K_theta (RL + CS, thesis Sec 4.2; docs/training.md); off: fixed stiffness (default: "
+        f"{'on' if default('compliance_strategy') else 'off'}, TrainConfig.compliance_strategy)",
     )
     t.add_argument("--profile", choices=("full", "cpu", "quick"), default="full")
     t.add_argument("--quick", action="store_true", help="same as --profile quick (CPU smoke run)")
@@ -49,6 +51,14 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
         default=[],
         metavar="KEY=VALUE",
         help="hyperparameter override, e.g. --set num_envs=64; env.KEY=VALUE for the env config",
+    )
+    t.add_argument(
+        "--distributed",
+        action="store_true",
+        help="experimental: one of several processes training one learner (jax.distributed; "
+        "coordinator, "
+        "process count and index from JAX_COORDINATOR_ADDRESS, JAX_NUM_PROCESSES, "
+        "JAX_PROCESS_ID or the cluster launcher); give each process its own --out",
     )
     t.add_argument("--no-progress", action="store_true", help="no progress bar")
     t.add_argument("--no-video", action="store_true", help="skip the final rollout GIF")
@@ -105,11 +115,30 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     c.set_defaults(func=cmd_compare)
 
 
-def cmd_train(args: argparse.Namespace) -> int:
+def train_config_from_args(args: argparse.Namespace):
+    """The :class:`TrainConfig` of a fresh ``peghole train``: ``load_train_config`` with the
+    flags given (an unset ``--compliance-strategy`` leaves TrainConfig's default)."""
     from peghole_mjx.training.config import load_train_config
+
+    if not args.env:
+        raise UserInputError("--env and --out are required (or --resume DIR)")
+    cs = None if args.compliance_strategy is None else args.compliance_strategy == "on"
+    return load_train_config(
+        args.env,
+        profile="quick" if args.quick else args.profile,
+        overrides=dict(args.overrides),
+        compliance_strategy=cs,
+    )
+
+
+def cmd_train(args: argparse.Namespace) -> int:
     from peghole_mjx.training.lock import RunLock
     from peghole_mjx.training.run import TrainingRun
 
+    if args.distributed:  # before anything of JAX runs
+        from peghole_mjx.training.distributed import initialize
+
+        initialize()
     progress = not args.no_progress
     if args.resume:
         over = dict(args.overrides)
@@ -135,12 +164,7 @@ def cmd_train(args: argparse.Namespace) -> int:
     else:
         if not args.env or not args.out:
             raise UserInputError("--env and --out are required (or --resume DIR)")
-        cfg = load_train_config(
-            args.env,
-            profile="quick" if args.quick else args.profile,
-            overrides=dict(args.overrides),
-            compliance_strategy=args.compliance_strategy == "on",
-        )
+        cfg = train_config_from_args(args)
         fileio.check_out_dir(args.out)
         if (args.out / "run.json").exists():
             raise UserInputError(

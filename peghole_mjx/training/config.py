@@ -1,5 +1,7 @@
-"""Training hyperparameters: one JSON file per env in ``train/configs/`` (kept apart from the
-env configs in :mod:`peghole_mjx.envs`), each with a ``common`` block and three profiles.
+"""Training hyperparameters: :class:`TrainConfig` owns every default (the values shared by all
+envs and profiles, and the compliance strategy); one JSON file per env in ``train/configs/``
+(kept apart from the env configs in :mod:`peghole_mjx.envs`) holds three profiles of the
+sizes that differ (steps, worlds, batch, replay) and any env-specific change.
 
 Keys, and the choices made where Brax's defaults differ from the thesis (stack_notes.md):
 
@@ -22,12 +24,13 @@ Keys, and the choices made where Brax's defaults differ from the thesis (stack_n
   starting value when learned, 0.2 (Brax starts at 1, which swamps the per-step rewards).
 * ``hidden_layer_sizes``: MLP widths of actor and critics, (256, 256) as SB3's MlpPolicy;
   ``normalize_observations``: running mean/std normaliser, on.
-* ``steps_per_call``: batched env steps per jitted call (progress-bar granularity);
-  ``seed``; ``env_overrides``: flat env-config overrides (e.g. ``episode_length``).
-
-``--compliance-strategy on`` adds ``compliance_strategy=True`` to the env overrides (the action
-then also sets k_xy and K_theta, Sec 4.2; docs/training.md); ``off`` trains with the fixed
-stiffness.
+* ``steps_per_call``: batched env steps per jitted call (progress-bar granularity), 25;
+  ``seed``: 0; ``env_overrides``: flat env-config overrides (e.g. ``episode_length``).
+* ``compliance_strategy``: on (RL + CS, thesis Sec 4.2): the action also sets k_xy and
+  K_theta (docs/training.md); off trains with the fixed stiffness. It is written into
+  ``env_overrides`` (``compliance_strategy``), so the env is built with it; the env config's
+  own default (off) applies only to envs built outside training. ``peghole train
+  --compliance-strategy`` and :func:`load_train_config` both default to this field.
 """
 
 from __future__ import annotations
@@ -58,18 +61,19 @@ class TrainConfig:
     grad_updates_per_step: int
     max_replay_size: int
     min_replay_size: int
-    learning_rate: float
-    discounting: float
-    tau: float
-    reward_scaling: float
-    alpha: str | float
-    alpha_init: float
-    hidden_layer_sizes: list[int]
-    normalize_observations: bool
-    steps_per_call: int
-    seed: int
+    learning_rate: float = 3e-4
+    discounting: float = 0.99
+    tau: float = 0.005
+    reward_scaling: float = 1.0
+    alpha: str | float = "auto"
+    alpha_init: float = 0.2
+    hidden_layer_sizes: list[int] = field(default_factory=lambda: [256, 256])
+    normalize_observations: bool = True
+    steps_per_call: int = 25
+    seed: int = 0
     env_overrides: dict[str, Any] = field(default_factory=dict)
     profile: str = "full"
+    compliance_strategy: bool = True
 
     def as_dict(self) -> dict[str, Any]:
         return asdict(self)
@@ -88,6 +92,11 @@ class TrainConfig:
         missing = sorted(required - set(d))
         if missing:
             raise UserInputError(f"training config lacks the keys {missing}")
+        d = dict(d)
+        in_env = (d.get("env_overrides") or {}) if isinstance(d.get("env_overrides"), dict) else {}
+        if "compliance_strategy" not in d and "compliance_strategy" in in_env:
+            # a run.json written before this field: the env override it trained with
+            d["compliance_strategy"] = in_env["compliance_strategy"]
         cfg = cls(**d)
         cfg.validate()
         return cfg
@@ -126,11 +135,22 @@ class TrainConfig:
             f"normalize_observations must be true or false, got {self.normalize_observations!r}",
         )
         need(isinstance(self.env, str), f"env must be a name, got {self.env!r}")
+        need(
+            isinstance(self.compliance_strategy, bool),
+            f"compliance_strategy must be true or false, got {self.compliance_strategy!r}",
+        )
         need(self.profile in PROFILES, f"profile must be one of {list(PROFILES)}")
         need(
             isinstance(self.env_overrides, dict),
             f"env_overrides must be a mapping, got {self.env_overrides!r}",
         )
+        in_env = self.env_overrides.get("compliance_strategy", self.compliance_strategy)
+        need(
+            in_env == self.compliance_strategy,
+            f"compliance_strategy is {self.compliance_strategy} but env_overrides sets "
+            f"{in_env!r}: set one of them",
+        )
+        self.env_overrides = {**self.env_overrides, "compliance_strategy": self.compliance_strategy}
         chunk = self.num_envs * self.steps_per_call
         need(
             self.eval_every >= chunk,
@@ -161,7 +181,10 @@ def load_train_config(
     overrides: dict[str, Any] | None = None,
     compliance_strategy: bool | None = None,
 ) -> TrainConfig:
-    """The hyperparameters of ``env`` for ``profile``, with flat ``overrides`` applied."""
+    """The hyperparameters of ``env`` for ``profile``: :class:`TrainConfig`'s defaults, the
+    env's JSON file (``common``, if any, then the profile), then flat ``overrides``
+    (``env.KEY`` for the env config), then ``compliance_strategy`` when not None (None: the
+    overrides' or the file's value, else ``TrainConfig.compliance_strategy``)."""
     if profile not in PROFILES:
         raise UserInputError(f"unknown profile {profile!r}; choose one of {list(PROFILES)}")
     path = CONFIG_DIR / f"{env}.json"
@@ -169,7 +192,7 @@ def load_train_config(
         known = sorted(p.stem for p in CONFIG_DIR.glob("*.json"))
         raise UserInputError(f"no training config for env {env!r} in {CONFIG_DIR}; have {known}")
     raw = json.loads(path.read_text())
-    d = dict(raw["common"])
+    d = dict(raw.get("common", {}))
     prof = dict(raw["profiles"][profile])
     env_over = {**d.pop("env_overrides", {}), **prof.pop("env_overrides", {})}
     d.update(prof)
@@ -179,8 +202,22 @@ def load_train_config(
         else:
             d[key] = value
     if compliance_strategy is not None:
-        env_over["compliance_strategy"] = bool(compliance_strategy)
+        d["compliance_strategy"] = bool(compliance_strategy)
+    if "compliance_strategy" in env_over:  # env.compliance_strategy=...: the same setting
+        cs = env_over.pop("compliance_strategy")
+        if compliance_strategy is not None and cs != d["compliance_strategy"]:
+            raise UserInputError(
+                f"compliance_strategy={compliance_strategy} and env.compliance_strategy={cs} "
+                "disagree: set one of them"
+            )
+        d["compliance_strategy"] = cs
     d.update(env=env, env_overrides=env_over, profile=profile)
     if isinstance(d.get("hidden_layer_sizes"), tuple):
         d["hidden_layer_sizes"] = list(d["hidden_layer_sizes"])
     return TrainConfig.from_dict(d)
+
+
+def default(name: str) -> Any:
+    """The default of :class:`TrainConfig` field ``name`` (what the CLI shows and uses)."""
+    f = {f.name: f for f in fields(TrainConfig)}[name]
+    return f.default_factory() if f.default is MISSING else f.default

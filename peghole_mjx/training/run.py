@@ -7,7 +7,8 @@ Layout of ``--out DIR``::
     tb/                   TensorBoard event files (same scalars)
     run.lock              held by the process writing the run (training/lock.py)
     checkpoints/step_N/   policy.json + params.npz at every evaluation; the two newest also
-                          hold state.npz + state.json (the whole carry, for --resume);
+                          hold state/ (orbax, by tree path) + state.json (the whole carry,
+                          for --resume);
                           manifest.json: every file's size and SHA-256 (training/checkpoints.py)
     final_policy/         the policy at the end (what `peghole evaluate DIR` loads)
     curves.png            Figs 4.5-4.7 style learning curves
@@ -145,44 +146,30 @@ class TrainingRun:
         """Write ``checkpoints/step_N`` completely (``checkpoints.write``: fsynced, sealed,
         renamed); the two newest checkpoints keep their state."""
         params = self.trainer.policy_params(carry)
-        arrays = {f"leaf_{i:05d}": x for i, x in enumerate(jax.tree.leaves(jax.device_get(carry)))}
+        host = jax.device_get(carry)
 
         def write_files(folder: Path) -> None:
             save_policy(folder, params, self._policy_meta(step), atomic=False)
-            fileio.write_bytes_with(folder / "state.npz", lambda f: np.savez(f, **arrays))
-            text = json.dumps({"step": step, **sched}, indent=2) + "\n"
+            saved = checkpoints.save_state(folder, host)
+            text = json.dumps({"step": step, **sched, **saved}, indent=2) + "\n"
             fileio.write_text(folder / "state.json", text)
 
         return checkpoints.write(self.ckpt_dir, step, write_files)
 
     def load_checkpoint(self, path: Path):
+        """``(carry, sched)`` of checkpoint ``path``, restored by tree path into this run's
+        carry (a carry of another structure is refused: ``checkpoints.restore_state``)."""
         template = self.trainer.init_carry(self.cfg.seed)
-        treedef = jax.tree.structure(template)
-        tleaves = jax.tree.leaves(template)
-        with np.load(path / "state.npz", allow_pickle=False) as z:
-            leaves = [z[f"leaf_{i:05d}"] for i in range(len(z.files))]
-        if len(leaves) != len(tleaves):
-            raise UserInputError(
-                f"{path}: saved state does not match this run's config ({len(leaves)} arrays "
-                f"saved, {len(tleaves)} expected): the config or the peghole_mjx version changed "
-                "since the checkpoint; its policy (policy.json, params.npz) still loads with "
-                "peghole evaluate"
-            )
-        bad = [
-            i for i, (t, x) in enumerate(zip(tleaves, leaves, strict=True)) if t.shape != x.shape
-        ]
-        if bad:
-            raise UserInputError(f"{path}: saved state does not match this run's config")
-        placed = [
-            jax.device_put(x.astype(t.dtype), t.sharding)
-            for t, x in zip(tleaves, leaves, strict=True)
-        ]
-        carry = jax.tree.unflatten(treedef, placed)
         sched = json.loads((path / "state.json").read_text())
         if not isinstance(sched, dict) or not isinstance(sched.get("step"), int):
             raise CorruptFileError(f"{path}/state.json holds no step")
         if not {"wall_s", "n_eval"} <= set(sched):
             raise CorruptFileError(f"{path}/state.json lacks the evaluation schedule")
+        empty = sched.pop("empty_leaves", {})
+        host = checkpoints.restore_state(path, template, empty)
+        carry = jax.tree.map(
+            lambda t, x: jax.device_put(x.astype(t.dtype), t.sharding), template, host
+        )
         return carry, sched
 
     def _policy_meta(self, step: int) -> dict[str, Any]:

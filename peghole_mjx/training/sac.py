@@ -19,9 +19,12 @@ directly:
 * **Episode statistics during training** (force, |F_xy|, discounted return of every finished
   training episode) for the thesis's Figs 4.5-4.7.
 
-Like Brax, the step is ``pmap``-ed over all local devices (``num_envs`` split across them;
-gradients and normaliser statistics averaged across them with ``pmean``). On several hosts,
-call ``jax.distributed.initialize()`` first (see docs/training.md).
+Like Brax, the step is ``pmap``-ed over all local devices, and on several processes
+(``jax.distributed``, ``peghole train --distributed``) over every process's devices:
+``num_envs``, ``max_replay_size`` and the batch are totals split across all devices
+(``jax.device_count()``), each process's worlds start from its own keys, and gradients and
+normaliser statistics are averaged across all devices with ``pmean``/``psum``, so every
+process holds the same learner (tested with two CPU processes: tests/test_distributed.py).
 
 Time limits. An episode that reaches ``episode_length`` is a failure with reward -1 (the
 thesis's rule) and a terminal transition, so ``truncation`` is always 0.
@@ -29,6 +32,7 @@ thesis's rule) and a terminal transition, so ``truncation`` is always 0.
 
 from __future__ import annotations
 
+import itertools
 from typing import Any
 
 import flax
@@ -85,17 +89,22 @@ def network_description(env: PegHoleEnv, cfg: TrainConfig) -> dict[str, Any]:
     }
 
 
+#: numbers the barriers of :meth:`SACTrainer._run` (a barrier's name is used once)
+_BARRIERS = itertools.count()
+
+
 class SACTrainer:
     """Jitted (pmapped) pieces of a SAC run: ``init``, ``prefill``, ``train_call``."""
 
     def __init__(self, env: PegHoleEnv, cfg: TrainConfig):
         self.env, self.cfg = env, cfg
-        self.n_dev = jax.local_device_count()
-        if cfg.num_envs % self.n_dev:
+        self.n_dev = jax.local_device_count()  # the pmap's width in this process
+        n_all = jax.device_count()  # every process's devices (= n_dev in one process)
+        if cfg.num_envs % n_all:
             raise UserInputError(
-                f"num_envs ({cfg.num_envs}) must be divisible by the device count ({self.n_dev})"
+                f"num_envs ({cfg.num_envs}) must be divisible by the device count ({n_all})"
             )
-        self.envs_per_dev = cfg.num_envs // self.n_dev
+        self.envs_per_dev = cfg.num_envs // n_all
         self.network = network_description(env, cfg)
         self.nets = make_networks(self.network)
         obs_size, act_size = self.network["observation_size"], self.network["action_size"]
@@ -106,7 +115,7 @@ class SACTrainer:
         self.alpha_opt = optax.adam(3e-4)
         dummy_obs = jnp.zeros((obs_size,))
         self.buffer = replay_buffers.UniformSamplingQueue(
-            max_replay_size=cfg.max_replay_size // self.n_dev,
+            max_replay_size=cfg.max_replay_size // n_all,
             dummy_data_sample=Transition(
                 observation=dummy_obs,
                 action=jnp.zeros((act_size,)),
@@ -115,7 +124,7 @@ class SACTrainer:
                 next_observation=dummy_obs,
                 extras={"state_extras": {"truncation": 0.0}, "policy_extras": {}},
             ),
-            sample_batch_size=cfg.batch_size * cfg.grad_updates_per_step // self.n_dev,
+            sample_batch_size=cfg.batch_size * cfg.grad_updates_per_step // n_all,
         )
         alpha_loss, critic_loss, actor_loss = sac_losses.make_losses(
             sac_network=self.nets,
@@ -129,15 +138,35 @@ class SACTrainer:
         self._dist = self.nets.parametric_action_distribution
         self.init = jax.pmap(self._init, axis_name=AXIS)
         self._train_call_p = jax.pmap(self._train_call, axis_name=AXIS)
+        self._compiled: dict[str, bool] = {}  # several processes: compiled ahead (_run)
 
     # ------------------------------------------------------------------ init
     def init_carry(self, seed: int) -> Carry:
         """A fresh carry: same learner on every device, different worlds per device."""
         key = jax.random.PRNGKey(seed)
         learner_key, local_key = jax.random.split(key)
+        if jax.process_count() > 1:  # each process's worlds and replay draws its own
+            local_key = jax.random.fold_in(local_key, jax.process_index())
         local_keys = jax.random.split(local_key, self.n_dev)
         learner_keys = jnp.stack([learner_key] * self.n_dev)
-        return self.init(learner_keys, local_keys)
+        return self._run("init", self.init, learner_keys, local_keys)
+
+    def _run(self, name: str, fn, *args):
+        """``fn(*args)``; with several processes, compiled first and then started together.
+
+        JAX's CPU collectives (gloo) give up when the processes reach a collective more than
+        30 s apart (seen 2026-11-29: ``Gloo context initialization failed: DEADLINE_EXCEEDED``
+        while the other process was still compiling), so each pmapped function is compiled
+        ahead (into the compilation cache its call then uses) and the processes meet at a
+        barrier of the coordination service before its first run."""
+        if jax.process_count() > 1 and name not in self._compiled:
+            from jax._src import distributed
+
+            fn.lower(*args).compile()  # fills the compilation cache that fn(*args) then uses
+            barrier = f"peghole_{name}_{next(_BARRIERS)}"  # the same sequence in every process
+            distributed.global_state.client.wait_at_barrier(barrier, 3_600_000)
+            self._compiled[name] = True
+        return fn(*args)
 
     def _init(self, learner_key, local_key) -> Carry:
         cfg = self.cfg
@@ -307,11 +336,12 @@ class SACTrainer:
 
     def train_call(self, carry: Carry) -> tuple[Carry, dict, dict]:
         """One call of env steps with learning."""
-        return self._train_call_p(carry, jnp.ones(self.n_dev, bool))
+        return self._run("train_call", self._train_call_p, carry, jnp.ones(self.n_dev, bool))
 
     def prefill(self, carry: Carry) -> tuple[Carry, dict]:
         """One call of env steps with the current policy, no learning (replay prefill)."""
-        carry, tot, _ = self._train_call_p(carry, jnp.zeros(self.n_dev, bool))
+        learn = jnp.zeros(self.n_dev, bool)
+        carry, tot, _ = self._run("train_call", self._train_call_p, carry, learn)
         return carry, tot
 
     # ------------------------------------------------------------------ helpers
