@@ -15,7 +15,10 @@ peg, the sweep's first two repeats) in MJX under variants that change one suspec
 * ``speed``: 20 mm/s against 5 mm/s (the oracle is quasi-static: a slower pull tests whether
   the arm's dynamics decide the force);
 * ``off-axis 300``: only the tilt axis (y, the planar oracle's) soft, x and z at 300 N m/rad:
-  whether the peg's out-of-plane rotation (which the planar oracle leaves out) matters.
+  whether the peg's out-of-plane rotation (which the planar oracle leaves out) matters;
+* ``law zeta 3`` / ``contact damping 3``: the law's damping ratio (1 by default) or the
+  contacts' (``SimOptions.contact_dampratio``, 1) three times higher: whether the rocking is
+  underdamped.
 
 Per variant and world: the late peak F_z (first 5 mm left out) beside the oracle's, the
 fraction of physics steps with both wall sides loaded inside two-point windows (>= 0.9 is the
@@ -59,7 +62,8 @@ CELL = dict(
 LC_MM = 150.0  # the top of the peg: where the oracle's peak is largest
 REPEATS = 2
 
-#: name -> (compensate joint damping, cone fix, float64, step s, pull speed m/s, off-axis K_theta)
+#: name -> (compensate joint damping, cone fix, float64, step s, pull speed m/s[, off-axis
+#: K_theta N m/rad, law damping ratio, contact damping ratio])
 VARIANTS = {
     "law and MJX as in the envs (1 ms, float32, 20 mm/s)": (False, False, False, 0.001, 0.02),
     "joint damping cancelled": (True, False, False, 0.001, 0.02),
@@ -69,18 +73,26 @@ VARIANTS = {
     "joint damping cancelled, cone fix": (True, True, False, 0.001, 0.02),
     "joint damping cancelled, cone fix, 5 mm/s": (True, True, False, 0.001, 0.005),
     "joint damping cancelled, cone fix, off-axis 300": (True, True, False, 0.001, 0.02, 300.0),
+    "joint damping cancelled, cone fix, law zeta 3": (True, True, False, 0.001, 0.02, None, 3.0),
+    "joint damping cancelled, cone fix, contact damping 3": (
+        *(True, True, False, 0.001, 0.02),
+        *(None, None, 3.0),
+    ),
 }
 
 
 def run_variant(name: str) -> dict:
     """Pull the check's worlds under variant ``name``; the row written to the JSON."""
     comp, fix, x64, dt, speed, *rest = VARIANTS[name]
-    off_axis = rest[0] if rest else None
+    off_axis, zeta, contact_dr = (*rest, None, None, None)[:3]
     import jax
 
     jax.config.update("jax_enable_x64", x64)  # one variant per process (see main)
     sim = dataclasses.replace(
-        SimOptions(), timestep=dt, contact_timeconst=cx.CONTACT_TIMECONST_S["rect"]
+        SimOptions(),
+        timestep=dt,
+        contact_timeconst=cx.CONTACT_TIMECONST_S["rect"],
+        contact_dampratio=SimOptions().contact_dampratio if contact_dr is None else contact_dr,
     )
     cfg = cx.ExperimentConfig(
         geometry="rect",
@@ -89,6 +101,7 @@ def run_variant(name: str) -> dict:
         compensate_joint_damping=comp,
         fix_cone_hessian=fix,
         off_axis_rotational_stiffness_Nm_rad=off_axis,
+        damping_ratio=zeta,
     )
     table = sw.cell_table(CELL, REPEATS, 0)
     sel = np.isclose(table["L_C"], LC_MM * 1e-3)
@@ -110,6 +123,8 @@ def run_variant(name: str) -> dict:
         "timestep_s": dt,
         "speed_m_s": speed,
         "off_axis_rotational_stiffness_Nm_rad": off_axis,
+        "law_damping_ratio": zeta,
+        "contact_dampratio": contact_dr,
         "peak_fz_late_N": _strict(cx.peaks(res, cx.EARLY_MM["rect"])["fz"]),
         "oracle_peak_fz_late_N": cx.quasi_static_peaks(qs, h0, cx.EARLY_MM["rect"]).tolist(),
         "both_walls_frac_in_two_point": both,
@@ -137,7 +152,7 @@ def main() -> int:
                 subprocess.run(cmd, check=True)
         for r in _rows(args.out).values():
             print(
-                f"{r['variant']:40s} sim {np.round(r['peak_fz_late_N'], 3)} "
+                f"{r['variant']:40s} sim {np.round(np.array(r['peak_fz_late_N'], float), 3)} "
                 f"oracle {np.round(r['oracle_peak_fz_late_N'], 3)} "
                 f"both walls {r['both_walls_frac_in_two_point']}"
             )

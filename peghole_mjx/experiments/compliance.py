@@ -136,6 +136,8 @@ class ExperimentConfig:
     #: rotational stiffness about the compliance frame's x and z axes (the axes other than the
     #: tilt axis y of the planar oracle), N m/rad; None: the world's K_theta on all three axes
     off_axis_rotational_stiffness_Nm_rad: float | None = None
+    #: the law's damping ratio zeta (None: ``GAINS.damping_ratio``)
+    damping_ratio: float | None = None
 
     def sim_options(self) -> SimOptions:
         """The simulator options in effect: ``sim``, else the project's default options at the
@@ -244,6 +246,7 @@ class Extraction:
             L_C,
             self.q0,
             stiffness=jnp.stack([k_lat, k_lat, jnp.full_like(k_lat, kz), k_off, k_rot, k_off]),
+            damping_ratio=self.cfg.damping_ratio,
         )
         x_C, R = self.ctl.centre_pose(self.dx0, params.L_C)
         # spring rest pose of the quasi-static model (analysis.common.rest_pose), world frame:
