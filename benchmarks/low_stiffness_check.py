@@ -38,6 +38,7 @@ import subprocess
 import sys
 import time
 from pathlib import Path
+from typing import NamedTuple
 
 import numpy as np
 from tqdm import tqdm
@@ -62,50 +63,58 @@ CELL = dict(
 LC_MM = 150.0  # the top of the peg: where the oracle's peak is largest
 REPEATS = 2
 
-#: name -> (compensate joint damping, cone fix, float64, step s, pull speed m/s[, off-axis
-#: K_theta N m/rad, law damping ratio, contact damping ratio])
+
+class Variant(NamedTuple):
+    """One suspect changed: the law, the solver, the precision, the step, the pull speed."""
+
+    compensate: bool = True  # the law cancels the arm's joint damping
+    cone_fix: bool = True  # MJX's elliptic-cone Hessian fixed (peghole_mjx/mjx_fixes.py)
+    x64: bool = False
+    timestep_s: float = 0.001
+    speed_m_s: float = 0.02
+    off_axis_Nm_rad: float | None = None  # K_theta about x and z (None: as about y)
+    law_zeta: float | None = None  # the law's damping ratio (None: GAINS)
+    contact_dampratio: float = SimOptions().contact_dampratio
+
+
 VARIANTS = {
-    "law and MJX as in the envs (1 ms, float32, 20 mm/s)": (False, False, False, 0.001, 0.02),
-    "joint damping cancelled": (True, False, False, 0.001, 0.02),
-    "joint damping cancelled, float64": (True, False, True, 0.001, 0.02),
-    "joint damping cancelled, 0.5 ms": (True, False, False, 0.0005, 0.02),
-    "joint damping cancelled, 5 mm/s": (True, False, False, 0.001, 0.005),
-    "joint damping cancelled, cone fix": (True, True, False, 0.001, 0.02),
-    "joint damping cancelled, cone fix, 5 mm/s": (True, True, False, 0.001, 0.005),
-    "joint damping cancelled, cone fix, off-axis 300": (True, True, False, 0.001, 0.02, 300.0),
-    "joint damping cancelled, cone fix, law zeta 3": (True, True, False, 0.001, 0.02, None, 3.0),
-    "joint damping cancelled, cone fix, contact damping 3": (
-        *(True, True, False, 0.001, 0.02),
-        *(None, None, 3.0),
-    ),
+    "law and MJX as in the envs (1 ms, float32, 20 mm/s)": Variant(False, False),
+    "joint damping cancelled": Variant(cone_fix=False),
+    "joint damping cancelled, float64": Variant(cone_fix=False, x64=True),
+    "joint damping cancelled, 0.5 ms": Variant(cone_fix=False, timestep_s=0.0005),
+    "joint damping cancelled, 5 mm/s": Variant(cone_fix=False, speed_m_s=0.005),
+    "joint damping cancelled, cone fix": Variant(),
+    "joint damping cancelled, cone fix, 5 mm/s": Variant(speed_m_s=0.005),
+    "joint damping cancelled, cone fix, off-axis 300": Variant(off_axis_Nm_rad=300.0),
+    "joint damping cancelled, cone fix, law zeta 3": Variant(law_zeta=3.0),
+    "joint damping cancelled, cone fix, contact damping 3": Variant(contact_dampratio=3.0),
 }
 
 
 def run_variant(name: str) -> dict:
     """Pull the check's worlds under variant ``name``; the row written to the JSON."""
-    comp, fix, x64, dt, speed, *rest = VARIANTS[name]
-    off_axis, zeta, contact_dr = (*rest, None, None, None)[:3]
+    v = VARIANTS[name]
     import jax
 
-    jax.config.update("jax_enable_x64", x64)  # one variant per process (see main)
+    jax.config.update("jax_enable_x64", v.x64)  # one variant per process (see main)
     sim = dataclasses.replace(
         SimOptions(),
-        timestep=dt,
+        timestep=v.timestep_s,
         contact_timeconst=cx.CONTACT_TIMECONST_S["rect"],
-        contact_dampratio=SimOptions().contact_dampratio if contact_dr is None else contact_dr,
+        contact_dampratio=v.contact_dampratio,
     )
     cfg = cx.ExperimentConfig(
         geometry="rect",
         sim=sim,
-        speed_m_s=speed,
-        compensate_joint_damping=comp,
-        fix_cone_hessian=fix,
-        off_axis_rotational_stiffness_Nm_rad=off_axis,
-        damping_ratio=zeta,
+        speed_m_s=v.speed_m_s,
+        compensate_joint_damping=v.compensate,
+        fix_cone_hessian=v.cone_fix,
+        off_axis_rotational_stiffness_Nm_rad=v.off_axis_Nm_rad,
+        damping_ratio=v.law_zeta,
     )
     table = sw.cell_table(CELL, REPEATS, 0)
     sel = np.isclose(table["L_C"], LC_MM * 1e-3)
-    table = {k: v[sel] for k, v in table.items()}
+    table = {k: a[sel] for k, a in table.items()}
     t0 = time.perf_counter()
     ex = cx.Extraction(PRESET, cfg, mu=CELL["mu"])
     res = ex.run(progress=False, table=table)
@@ -117,14 +126,14 @@ def run_variant(name: str) -> dict:
     both = [float(np.mean(res["both_frac"][w][tp[w]])) if tp[w].any() else None for w in range(nw)]
     return {
         "variant": name,
-        "compensate_joint_damping": comp,
-        "fix_cone_hessian": fix,
-        "float64": x64,
-        "timestep_s": dt,
-        "speed_m_s": speed,
-        "off_axis_rotational_stiffness_Nm_rad": off_axis,
-        "law_damping_ratio": zeta,
-        "contact_dampratio": contact_dr,
+        "compensate_joint_damping": v.compensate,
+        "fix_cone_hessian": v.cone_fix,
+        "float64": v.x64,
+        "timestep_s": v.timestep_s,
+        "speed_m_s": v.speed_m_s,
+        "off_axis_rotational_stiffness_Nm_rad": v.off_axis_Nm_rad,
+        "law_damping_ratio": v.law_zeta,
+        "contact_dampratio": v.contact_dampratio,
         "peak_fz_late_N": _strict(cx.peaks(res, cx.EARLY_MM["rect"])["fz"]),
         "oracle_peak_fz_late_N": cx.quasi_static_peaks(qs, h0, cx.EARLY_MM["rect"]).tolist(),
         "both_walls_frac_in_two_point": both,

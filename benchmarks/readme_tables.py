@@ -313,7 +313,7 @@ def low_stiffness_check() -> str:
         "|---|---|---|---|---|",
     ]
     for r in d["rows"]:
-        pk = " / ".join("NaN" if v is None or v != v else f"{v:.3f}" for v in r["peak_fz_late_N"])
+        pk = " / ".join("NaN" if v is None else f"{v:.3f}" for v in r["peak_fz_late_N"])
         orc = " / ".join(f"{v:.3f}" for v in r["oracle_peak_fz_late_N"])
         both = " / ".join(
             "-" if v is None else f"{v:.2f}" for v in r["both_walls_frac_in_two_point"]
