@@ -21,8 +21,9 @@ uses it, so the envs and the committed policies run MJX as shipped.
 from __future__ import annotations
 
 import contextlib
+import functools
 import inspect
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 
 from peghole_mjx._mjx import mjx  # noqa: F401  (imports mujoco.mjx quietly first)
 
@@ -35,7 +36,23 @@ _state: dict[str, object] = {}
 
 def cone_hessian_fix_applied() -> bool:
     """Whether :func:`apply_cone_hessian_fix` has patched this process's MJX."""
-    return "patched" in _state
+    return "original" in _state
+
+
+@functools.cache
+def _fixed(old: str, new: str) -> Callable:
+    """MJX's ``_update_constraint`` with ``old`` replaced by ``new`` (built once per process)."""
+    from mujoco.mjx._src import solver
+
+    src = inspect.getsource(solver._update_constraint)
+    if old not in src:
+        raise RuntimeError(
+            "the cone-Hessian fix does not apply to this mujoco-mjx version "
+            "(solver._update_constraint changed); run without it"
+        )
+    namespace = dict(solver.__dict__)
+    exec(compile(src.replace(old, new), solver.__file__, "exec"), namespace)
+    return namespace["_update_constraint"]
 
 
 def apply_cone_hessian_fix() -> None:
@@ -48,17 +65,9 @@ def apply_cone_hessian_fix() -> None:
         return
     from mujoco.mjx._src import solver
 
-    src = inspect.getsource(solver._update_constraint)
-    if _OLD not in src:
-        raise RuntimeError(
-            "the cone-Hessian fix does not apply to this mujoco-mjx version "
-            "(solver._update_constraint changed); run without it"
-        )
-    namespace = dict(solver.__dict__)
-    exec(compile(src.replace(_OLD, _NEW), solver.__file__, "exec"), namespace)
+    fixed = _fixed(_OLD, _NEW)
     _state["original"] = solver._update_constraint
-    _state["patched"] = namespace["_update_constraint"]
-    solver._update_constraint = namespace["_update_constraint"]
+    solver._update_constraint = fixed
 
 
 def remove_cone_hessian_fix() -> None:
@@ -68,7 +77,6 @@ def remove_cone_hessian_fix() -> None:
     from mujoco.mjx._src import solver
 
     solver._update_constraint = _state.pop("original")
-    _state.pop("patched")
 
 
 @contextlib.contextmanager
