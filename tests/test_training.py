@@ -20,7 +20,7 @@ import numpy as np
 import pytest
 
 from peghole_mjx.errors import UserInputError
-from peghole_mjx.training.config import load_train_config
+from peghole_mjx.training.config import PROFILES, load_train_config
 
 TINY = {
     "num_envs": 8,
@@ -353,6 +353,38 @@ def test_bad_training_config_is_rejected_with_the_reason():
         load_train_config("RectExtract", "huge")
     with pytest.raises(UserInputError, match="no training config"):
         load_train_config("SquareExtract")
+
+
+def test_every_registered_env_has_a_training_config_for_every_profile():
+    from peghole_mjx.envs import ALL_ENVS
+
+    for env in ALL_ENVS:
+        for profile in PROFILES:
+            cfg = load_train_config(env, profile)
+            assert cfg.env == env and cfg.profile == profile
+
+
+def test_hard_variant_configs_are_the_base_configs_but_for_their_stated_changes():
+    """train/configs/*Hard.json copy RectExtract's / DualExtract's hyperparameters; the only
+    differences are the ones their descriptions state (decided before training)."""
+    stated = {
+        ("RectExtractHard", "cpu"): {"num_timesteps": (100000, 60000)},
+        ("DualExtractHard", "cpu"): {"env_overrides": "episode_length"},  # env's own 8 s
+    }
+    for hard, base in (("RectExtractHard", "RectExtract"), ("DualExtractHard", "DualExtract")):
+        for profile in PROFILES:
+            h = load_train_config(hard, profile).as_dict()
+            b = load_train_config(base, profile).as_dict()
+            diff = {k for k in h if h[k] != b[k]} - {"env"}
+            want = stated.get((hard, profile), {})
+            assert diff == set(want), (hard, profile, diff)
+            if "num_timesteps" in want:
+                assert (b["num_timesteps"], h["num_timesteps"]) == want["num_timesteps"]
+            if "env_overrides" in want:
+                gone = want["env_overrides"]
+                assert gone in b["env_overrides"] and gone not in h["env_overrides"]
+                b["env_overrides"].pop(gone)
+                assert h["env_overrides"] == b["env_overrides"]
 
 
 def test_train_cli_refuses_to_overwrite_a_run(tmp_path):
