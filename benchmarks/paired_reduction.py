@@ -8,7 +8,9 @@
 the mean-|F_z| reduction (the thesis's R3 measure, as ``peghole evaluate``) over all episodes,
 per slice, on the episodes not used to choose the policy (``--chosen-on N``: episodes 0 to
 N-1 of this seed were), a paired bootstrap interval (episodes resampled, policy and baseline
-together) and the share of episodes where the policy's mean |F_z| is the lower.
+together) and the share of episodes where the policy's mean |F_z| is the lower; and the
+reduction with its bootstrap interval over the episodes both succeed in (``both_succeed``:
+the interval resamples those episodes only).
 """
 
 from __future__ import annotations
@@ -59,6 +61,18 @@ def reduction_pct(policy_fz: np.ndarray, baseline_fz: np.ndarray) -> float:
     )
 
 
+def paired_bootstrap(p: np.ndarray, b: np.ndarray) -> dict:
+    """95 % interval of the reduction, episodes resampled with policy and baseline together."""
+    n = len(p)
+    idx = np.random.default_rng(BOOTSTRAP_SEED).integers(0, n, (BOOTSTRAP_RESAMPLES, n))
+    boot = 100.0 * (1.0 - p[idx].mean(1) / b[idx].mean(1))
+    return {
+        "resamples": BOOTSTRAP_RESAMPLES,
+        "seed": BOOTSTRAP_SEED,
+        "reduction_pct_95": [float(x) for x in np.percentile(boot, [2.5, 97.5])],
+    }
+
+
 def analyse(
     episodes_csv: Path, chosen_on: int = 0, slice_size: int = 256, evaluated_on: str = ""
 ) -> dict:
@@ -67,9 +81,10 @@ def analyse(
         rows = list(csv.DictReader(f))
     p = np.array([float(r["policy_mean_fz_N"]) for r in rows])
     b = np.array([float(r["baseline_mean_fz_N"]) for r in rows])
+    both = np.array(
+        [float(r["policy_success"]) > 0 and float(r["baseline_success"]) > 0 for r in rows]
+    )
     n = len(p)
-    idx = np.random.default_rng(BOOTSTRAP_SEED).integers(0, n, (BOOTSTRAP_RESAMPLES, n))
-    boot = 100.0 * (1.0 - p[idx].mean(1) / b[idx].mean(1))
     slices = range(0, n, slice_size)
     return {
         "episodes_csv": episodes_csv.name,
@@ -82,12 +97,15 @@ def analyse(
         ],
         "chosen_on_episodes": chosen_on,
         "reduction_pct_not_chosen_on": reduction_pct(p[chosen_on:], b[chosen_on:]),
-        "bootstrap": {
-            "resamples": BOOTSTRAP_RESAMPLES,
-            "seed": BOOTSTRAP_SEED,
-            "reduction_pct_95": [float(x) for x in np.percentile(boot, [2.5, 97.5])],
-        },
+        "bootstrap": paired_bootstrap(p, b),
         "share_of_episodes_policy_lower": float((p < b).mean()),
+        "both_succeed": {
+            "episodes": int(both.sum()),
+            "policy_mean_fz_N": float(p[both].mean()) if both.any() else float("nan"),
+            "baseline_mean_fz_N": float(b[both].mean()) if both.any() else float("nan"),
+            "reduction_pct": reduction_pct(p[both], b[both]) if both.any() else float("nan"),
+            "bootstrap": paired_bootstrap(p[both], b[both]) if both.any() else None,
+        },
         "evaluated_on": evaluated_on,  # the device of the rollouts (this analysis is NumPy)
         "date": utc_now(),
     }

@@ -386,6 +386,34 @@ def test_committed_dual_per_episode_file_matches_the_published_evaluation():
     assert got["bootstrap"] == committed["bootstrap"]  # fixed resampling seed
     lo, hi = got["bootstrap"]["reduction_pct_95"]
     assert lo < got["reduction_pct"] < hi
+    # every episode succeeds on both sides: the jointly-successful figures are the same
+    assert got["both_succeed"]["episodes"] == got["episodes"]
+    assert got["both_succeed"]["reduction_pct"] == got["reduction_pct"]
+    assert got["both_succeed"]["bootstrap"] == got["bootstrap"]
+
+
+def test_paired_reduction_over_jointly_successful_episodes(tmp_path):
+    """``both_succeed`` keeps only the episodes where policy and baseline both succeed."""
+    cols = ["success", "extraction_time_s", "mean_fz_N", "peak_fz_N", "mean_fxy_N"]
+    head = ["episode", *(f"policy_{c}" for c in cols), *(f"baseline_{c}" for c in cols)]
+    rows = [  # (policy success, policy F_z, baseline success, baseline F_z)
+        (1, 1.0, 1, 2.0),
+        (1, 3.0, 1, 4.0),
+        (1, 1.0, 0, 50.0),  # baseline wedged: left out of both_succeed
+        (0, 9.0, 1, 2.0),  # policy failed: left out
+    ]
+    lines = [",".join(head)]
+    for i, (ps, pf, bs, bf) in enumerate(rows):
+        lines.append(",".join(map(str, [i, ps, 1, pf, pf, 0, bs, 1, bf, bf, 0])))
+    f = tmp_path / "episodes.csv"
+    f.write_text("\n".join(lines) + "\n")
+    got = paired_reduction.analyse(f)
+    assert got["reduction_pct"] == pytest.approx(100 * (1 - 14 / 58))
+    both = got["both_succeed"]
+    assert both["episodes"] == 2
+    assert both["reduction_pct"] == pytest.approx(100 * (1 - 4 / 6))
+    lo, hi = both["bootstrap"]["reduction_pct_95"]
+    assert lo <= both["reduction_pct"] <= hi
 
 
 def test_committed_2n_bound_dual_analysis_is_reproduced_from_its_episodes():
