@@ -60,3 +60,19 @@ def test_scripted_method_wedges_in_part_of_the_dual_hard_episodes():
     assert ok.any() and failed.any() and (ok ^ failed).all()
     assert not (e["nan"] > 0).any() and not (e["jammed"] > 0).any()
     assert (e["peak_fz_N"][failed] > 55.0).all()  # at the 60 N limit of the axial force
+
+
+def test_a_hard_variant_policy_fits_its_env_and_not_the_base_one():
+    """The hard variants share their base env's class: the registry name tells them apart."""
+    from pathlib import Path
+
+    from peghole_mjx.errors import UserInputError
+    from peghole_mjx.policies import PolicyBundle
+
+    hard, base = envs.load("RectExtractHard"), envs.load("RectExtract")
+    assert (hard.env_name, base.env_name) == ("RectExtractHard", "RectExtract")
+    sizes = {"observation_size": hard.observation_size, "action_size": hard.action_size}
+    bundle = PolicyBundle(Path("p"), {"env": "RectExtractHard", "network": sizes}, None)
+    bundle.check_env(hard)
+    with pytest.raises(UserInputError, match="for RectExtractHard, not for RectExtract$"):
+        bundle.check_env(base)

@@ -199,7 +199,7 @@ def test_evaluate_parts_folder_refuses_another_evaluation_and_shares_the_baselin
         evaluate(final, seed=1, **{**kw, "env": slower})
 
 
-def test_publish_screening_picks_the_best_screened_checkpoint(trained):
+def test_publish_screening_picks_the_best_screened_checkpoint(trained, monkeypatch):
     """train/publish_policy.py --screen: re-ranks checkpoints on fresh episodes."""
     sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "train"))
     from publish_policy import SCREEN_SEED, screen_checkpoints
@@ -214,6 +214,17 @@ def test_publish_screening_picks_the_best_screened_checkpoint(trained):
     assert str(SCREEN_SEED) in sel["rule"]
     with pytest.raises(SystemExit, match="none of the checkpoints"):
         screen_checkpoints(run.out, 4, candidates=[123])
+    # a rerun (e.g. after an interrupted evaluation) takes the kept screens, keyed by parameters
+    cache = run.out / f"screen_seed{SCREEN_SEED}_4.json"
+    assert set(json.loads(cache.read_text())) == {"3600", "4000"}
+    with monkeypatch.context() as m:
+        m.setattr("peghole_mjx.envs.rollout.rollout", _no_rollout)
+        assert screen_checkpoints(run.out, 4, candidates=[3600, 4000]) == (path, sel)
+    cache.unlink()
+
+
+def _no_rollout(*args, **kwargs):
+    raise AssertionError("screened again")
 
 
 def test_publish_deployment_overrides_change_the_env_and_keep_the_trained_values(trained):

@@ -1,13 +1,13 @@
 """Publish a training run's policy as a pretrained policy inside the package.
 
-    python train/publish_policy.py RUN_DIR rect [--checkpoint best|final|STEP] [--episodes 256]
+    python train/publish_policy.py RUN_DIR NAME [--checkpoint best|final|STEP] [--episodes 256]
                                                 [--screen 256] [--batch 256 --parts DIR]
                                                 [--deploy-set KEY=VALUE ...]
 
-copies the chosen policy into ``peghole_mjx/policies/<name>_extract/`` with the run's
-``metrics.csv``, ``curves.png`` and ``summary.json``, then evaluates it against the scripted
-baseline on fresh episodes (``evaluation.json``: the same as ``peghole evaluate <name>
---episodes N --json``).
+(NAME: rect, dual, rect_hard) copies the chosen policy into its ``PRETRAINED`` folder
+(``peghole_mjx/policies/*``) with the run's ``metrics.csv``, ``curves.png`` and
+``summary.json``, then evaluates it against the scripted baseline on fresh episodes
+(``evaluation.json``: the same as ``peghole evaluate <name> --episodes N --json``).
 
 ``--checkpoint best`` (the default) takes the checkpoint whose training-time evaluation had
 the highest success rate, ties broken by the lower mean extraction force |F_z| (the thesis's
@@ -17,6 +17,8 @@ training evaluations put near the top (success within 0.1 of the best) by the sa
 episodes of the policy alone (seed 20000; the training evaluations have only ``num_eval_envs``
 episodes each, too few to tell 97 % from 99 % success). The choice is recorded in
 ``policy.json`` (``selection``). ``--candidates STEP ...`` screens those checkpoints only.
+Each checkpoint's screen is kept in ``RUN_DIR/screen_seed20000_N.json`` (with the digest of
+its parameters), so a rerun after an interrupted evaluation does not screen it again.
 
 ``--deploy-set KEY=VALUE`` (env config keys, as ``peghole train --set env.KEY=VALUE``) changes
 the env the published policy runs in from the one it was trained in, e.g. a tighter force
@@ -77,6 +79,7 @@ def screen_checkpoints(
     """Re-rank the near-best (or the ``candidates``) checkpoints of ``run`` on fresh episodes."""
     from peghole_mjx.envs.rollout import rollout
     from peghole_mjx.policies import load_policy
+    from peghole_mjx.training.evaluate import params_sha256
 
     rows = _eval_rows(run)
     near = max(float(r["eval/success_rate"]) for r in rows) - SCREEN_WITHIN
@@ -88,11 +91,19 @@ def screen_checkpoints(
         have = [int(r["step"]) for r in rows]
         raise SystemExit(f"none of the checkpoints {candidates} is in {run} (it has {have})")
     env, scores = None, []
+    cache_file = run / f"screen_seed{SCREEN_SEED}_{episodes}.json"
+    cache = json.loads(cache_file.read_text()) if cache_file.exists() else {}
     for step in steps:
         bundle = load_policy(_checkpoint_dir(run, step))
-        env = env if env is not None else bundle.make_env()
-        s = rollout(env, bundle.policy_fn(), episodes, seed=SCREEN_SEED, params=bundle.params)
-        s = s.summary().as_dict()
+        sha = params_sha256(bundle.params)
+        if cache.get(str(step), {}).get("params_sha256") == sha:  # screened before: same result
+            s = cache[str(step)]["summary"]
+        else:
+            env = env if env is not None else bundle.make_env()
+            s = rollout(env, bundle.policy_fn(), episodes, seed=SCREEN_SEED, params=bundle.params)
+            s = s.summary().as_dict()
+            cache[str(step)] = {"params_sha256": sha, "summary": s}
+            cache_file.write_text(json.dumps(cache, indent=2) + "\n")
         print(f"step {step:>8}: success {s['success_rate']:.3f}  F_z {s['mean_fz_N']:.3f} N")
         scores.append((s["success_rate"], -s["mean_fz_N"], step))
     _, _, best = max(scores)
@@ -127,7 +138,9 @@ def deployment_overrides(meta: dict, new: dict) -> dict:
 def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawTextHelpFormatter)
     ap.add_argument("run", type=Path)
-    ap.add_argument("name", choices=("rect", "dual"))
+    from peghole_mjx.policies import PRETRAINED
+
+    ap.add_argument("name", choices=sorted(PRETRAINED))
     ap.add_argument("--checkpoint", default="best", help="best | final | an env-step count")
     ap.add_argument("--episodes", type=int, default=256)
     ap.add_argument("--seed", type=int, default=0)

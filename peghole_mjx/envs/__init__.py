@@ -47,7 +47,9 @@ def load(
 ) -> PegHoleEnv:
     """Build env ``name`` with its default config (or ``config``) and flat overrides."""
     _check(name)
-    return _envs[name](config or get_default_config(name), config_overrides)
+    env = _envs[name](config or get_default_config(name), config_overrides)
+    env.env_name = name  # the hard variants share their base env's class
+    return env
 
 
 __all__ = ["ALL_ENVS", "PegHoleEnv", "State", "get_default_config", "load"]

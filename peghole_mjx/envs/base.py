@@ -75,6 +75,8 @@ class PegHoleBase:
     def __init__(self, config: config_dict.ConfigDict, config_overrides: dict | None = None):
         config = apply_overrides(config, config_overrides)
         self._config = config
+        #: the registry name (``envs.load`` sets it: RectExtractHard is a RectExtract class)
+        self.env_name = type(self).__name__
         if config.impl not in ("jax", "warp"):
             raise UserInputError(f"impl must be 'jax' or 'warp', got {config.impl!r}")
         if config.impl == "warp" and not WARP_AVAILABLE:

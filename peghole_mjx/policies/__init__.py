@@ -18,7 +18,8 @@ them by position (``leaf_0000``...) and is upgraded when loaded (:func:`upgrade_
 rewrites a folder as 2: ``python train/upgrade_policy.py DIR``); any other version is refused
 in one line.
 
-Pretrained policies (``PRETRAINED``) are addressed by name (``rect``, ``dual``) or by path.
+Pretrained policies (``PRETRAINED``) are addressed by name (``rect``, ``dual``,
+``rect_hard``) or by path.
 """
 
 from __future__ import annotations
@@ -40,7 +41,11 @@ from peghole_mjx.treenames import differences, named_leaves
 
 POLICY_DIR = Path(__file__).resolve().parent
 #: committed pretrained policies: name -> directory inside the package
-PRETRAINED = {"rect": POLICY_DIR / "rect_extract", "dual": POLICY_DIR / "dual_extract"}
+PRETRAINED = {
+    "rect": POLICY_DIR / "rect_extract",
+    "dual": POLICY_DIR / "dual_extract",
+    "rect_hard": POLICY_DIR / "rect_extract_hard",  # RectExtractHard (docs/training.md)
+}
 #: the format ``save_policy`` writes
 FORMAT_VERSION = 2
 #: formats ``load_policy`` reads (1: positional arrays, upgraded on load)
@@ -75,7 +80,7 @@ class PolicyBundle:
     def check_env(self, env) -> None:
         """Refuse an env whose name or observation/action sizes differ from the policy's."""
         net = self.meta["network"]
-        name = type(env).__name__
+        name = getattr(env, "env_name", type(env).__name__)  # the registry name
         if name != self.env_name:
             raise UserInputError(f"{self.path}: a policy for {self.env_name}, not for {name}")
         have = (env.observation_size, env.action_size)
