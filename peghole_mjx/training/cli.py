@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import json
 import math
 import sys
 from pathlib import Path
@@ -59,6 +60,15 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
         "coordinator, "
         "process count and index from JAX_COORDINATOR_ADDRESS, JAX_NUM_PROCESSES, "
         "JAX_PROCESS_ID or the cluster launcher); give each process its own --out",
+    )
+    t.add_argument(
+        "--seeds",
+        type=int,
+        default=None,
+        metavar="N",
+        help="train N seeds (seed, seed+1, ...) in one compiled call (make_train vmapped over "
+        "the seeds' keys): per-seed policies, history.csv, seeds.json with 95 %% intervals over "
+        "seeds and banded curves (training/seeds.py); resumable with --resume DIR",
     )
     t.add_argument("--no-progress", action="store_true", help="no progress bar")
     t.add_argument("--no-video", action="store_true", help="skip the final rollout GIF")
@@ -131,6 +141,19 @@ def train_config_from_args(args: argparse.Namespace):
     )
 
 
+def fresh_run_config(args: argparse.Namespace):
+    """The config of a new run in ``--out`` (refused when ``--out`` already holds one)."""
+    if not args.env or not args.out:
+        raise UserInputError("--env and --out are required (or --resume DIR)")
+    cfg = train_config_from_args(args)
+    fileio.check_out_dir(args.out)
+    if (args.out / "run.json").exists():
+        raise UserInputError(
+            f"{args.out} already holds a training run: use --resume {args.out} or a new --out"
+        )
+    return cfg
+
+
 def cmd_train(args: argparse.Namespace) -> int:
     from peghole_mjx.training.lock import RunLock
     from peghole_mjx.training.run import TrainingRun
@@ -140,6 +163,8 @@ def cmd_train(args: argparse.Namespace) -> int:
 
         initialize()
     progress = not args.no_progress
+    if args.seeds is not None or (args.resume and _is_seeds_run(args.resume)):
+        return _train_seeds(args, progress)
     if args.resume:
         over = dict(args.overrides)
         if args.env or set(over) - {"num_timesteps"}:
@@ -162,14 +187,7 @@ def cmd_train(args: argparse.Namespace) -> int:
             run.stop_at_success = args.stop_at_success
             summary = run.run(resume=True)
     else:
-        if not args.env or not args.out:
-            raise UserInputError("--env and --out are required (or --resume DIR)")
-        cfg = train_config_from_args(args)
-        fileio.check_out_dir(args.out)
-        if (args.out / "run.json").exists():
-            raise UserInputError(
-                f"{args.out} already holds a training run: use --resume {args.out} or a new --out"
-            )
+        cfg = fresh_run_config(args)
         with RunLock(args.out) as lock:
             run = TrainingRun(
                 cfg,
@@ -188,6 +206,37 @@ def cmd_train(args: argparse.Namespace) -> int:
         f"return {_num(fe.get('mean_return'), '.2f')} "
         f"(untrained {_num(untrained, '.2f')}); outputs in {run.out}"
     )
+    return 0
+
+
+def _is_seeds_run(out: Path) -> bool:
+    try:
+        return "seeds" in json.loads((out / "run.json").read_text())
+    except (OSError, ValueError, TypeError):
+        return False
+
+
+def _train_seeds(args: argparse.Namespace, progress: bool) -> int:
+    """``peghole train --seeds N`` (or ``--resume`` of such a run): training/seeds.py."""
+    from peghole_mjx.training.seeds import SeedsRun
+
+    if args.distributed or args.stop_at_success is not None:
+        raise UserInputError("--seeds takes neither --distributed nor --stop-at-success")
+    if args.resume:
+        if args.env or args.overrides or args.seeds is not None:
+            raise UserInputError("--resume takes the run's own config: drop --env, --set, --seeds")
+        run = SeedsRun.resume(args.resume, progress=progress)
+        summary = run.run(resume=True)
+    else:
+        cfg = fresh_run_config(args)
+        run = SeedsRun(cfg, args.seeds, args.out, progress=progress)
+        summary = run.run(resume=False)
+    over = summary["final_eval_over_seeds"]
+    for key in ("success_rate", "mean_fz_N", "mean_fxy_N"):
+        ci = over.get(key, {}).get("ci95_t")
+        ci_text = f" [{ci[0]:.3g}, {ci[1]:.3g}]" if ci else ""
+        print(f"{key}: mean over seeds {_num(over.get(key, {}).get('mean'), '.3g')}{ci_text}")
+    print(f"{summary['env']}: {len(summary['seeds'])} seeds; outputs in {run.out}")
     return 0
 
 
