@@ -161,3 +161,29 @@ def test_t_interval_matches_the_textbook_value():
     assert (lo, hi) == pytest.approx((2 - 4.3027 / 3**0.5, 2 + 4.3027 / 3**0.5), abs=1e-3)
     assert t_interval([1.0]) is None
     assert jnp.isfinite(jnp.asarray(lo))
+
+
+@pytest.mark.parametrize(
+    ("extra", "message"),
+    [
+        (["--seeds", "0"], "--seeds must be a whole number >= 1"),
+        (["--seeds", "2", "--distributed"], "--seeds takes neither --distributed"),
+        (["--seeds", "2", "--stop-at-success", "0.9"], "--seeds takes neither"),
+    ],
+)
+def test_cli_seeds_bad_input_is_one_line(tmp_path, capsys, extra, message):
+    from peghole_mjx.cli import main
+
+    rc = main(["train", "--env", "RectExtract", "--quick", "--out", str(tmp_path / "r"), *extra])
+    err = capsys.readouterr().err.strip().splitlines()
+    assert rc == 2 and len(err) == 1 and message in err[0]
+    assert not (tmp_path / "r" / "run.json").exists()
+
+
+def test_cli_resume_of_a_seeds_run_takes_its_own_config(seeds_run, capsys):
+    from peghole_mjx.cli import main
+
+    run, _ = seeds_run
+    rc = main(["train", "--resume", str(run.out), "--set", "num_envs=8"])
+    err = capsys.readouterr().err.strip()
+    assert rc == 2 and "--resume takes the run's own config" in err

@@ -158,13 +158,13 @@ def cmd_train(args: argparse.Namespace) -> int:
     from peghole_mjx.training.lock import RunLock
     from peghole_mjx.training.run import TrainingRun
 
+    progress = not args.no_progress
+    if args.seeds is not None or (args.resume and _is_seeds_run(args.resume)):
+        return _train_seeds(args, progress)
     if args.distributed:  # before anything of JAX runs
         from peghole_mjx.training.distributed import initialize
 
         initialize()
-    progress = not args.no_progress
-    if args.seeds is not None or (args.resume and _is_seeds_run(args.resume)):
-        return _train_seeds(args, progress)
     if args.resume:
         over = dict(args.overrides)
         if args.env or set(over) - {"num_timesteps"}:
