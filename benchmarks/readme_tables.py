@@ -444,21 +444,11 @@ def pretrained() -> str:
         th = ev["thesis"]
         prov = pol.get("provenance", {})
         rect = name == "rect"
-        dep = pol.get("deployment")
-        deployed = (
-            "; run with "
-            + ", ".join(
-                f"{k} = {v} (trained with {dep['trained_with'][k]})"
-                for k, v in dep["env_overrides"].items()
-            )
-            if dep
-            else ""
-        )
         none = "no thesis result (R6: the dual RL study was not possible in PyBullet)"
         lines += [
             f"`{name}` ({ev['env']}, {ev['preset']}, compliance strategy "
             f"{'on' if ev['compliance_strategy'] else 'off'}; trained for {pol['env_steps']} "
-            f"env steps on {prov.get('device', '?')}{deployed}; evaluated on {ev['episodes']} "
+            f"env steps on {prov.get('device', '?')}; evaluated as trained on {ev['episodes']} "
             f"randomised episodes, seed {ev['seed']}, from "
             f"[`{path.relative_to(ROOT)}`]({path.relative_to(ROOT)}); "
             f"`peghole evaluate {name} --episodes {ev['episodes']}{_batch_flag(ev)} --json` "
