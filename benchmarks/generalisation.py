@@ -56,6 +56,8 @@ HELD_OUT = {
 }
 METRICS = ("success_rate", "mean_time_s", "mean_fz_N", "peak_fz_N", "mean_fxy_N")
 CUSTOM = "custom"
+#: per method and cell: the metrics, the episode count and the failures by cause
+KEPT = (*METRICS, "episodes", "jammed", "timeouts")
 
 
 def cells(kind: str, presets: list[str] | None, custom: bool) -> dict[str, dict]:
@@ -223,8 +225,8 @@ def main(argv: list[str] | None = None) -> int:
                 "clearance_mm": round(spec.clearance_mm, 4),
                 "trained_on": name == trained.preset,
                 "differs_from_training": res["differs_from_training"],
-                "policy": {k: res["policy"][k] for k in (*METRICS, "episodes", "jammed")},
-                "baseline": {k: res["baseline"][k] for k in (*METRICS, "episodes", "jammed")},
+                "policy": {k: res["policy"][k] for k in KEPT},
+                "baseline": {k: res["baseline"][k] for k in KEPT},
                 "force_reduction_pct": res["force_reduction_pct"],
                 "wall_s": res.get("wall_s"),
                 "date": res["date"],
