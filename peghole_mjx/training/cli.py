@@ -93,6 +93,34 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     )
     e.add_argument("checkpoint", nargs="+")
     e.add_argument(
+        "--env",
+        choices=ALL_ENVS,
+        help="the env the policy must have been trained on (refused in one line if not)",
+    )
+    e.add_argument(
+        "--preset",
+        help="evaluate on this preset; refused unless it is the policy's training preset, or "
+        "--cross is given",
+    )
+    e.add_argument(
+        "--set",
+        dest="env_sets",
+        type=_override,
+        action="append",
+        default=[],
+        metavar="env.KEY=VALUE",
+        help="an env config entry for this evaluation, e.g. --set env.action.max_ff_xy_N=0.5 "
+        "or --set 'env.geometry={\"peg_w_mm\": 59.8}'; refused unless it equals the training "
+        "value, or --cross is given",
+    )
+    e.add_argument(
+        "--cross",
+        action="store_true",
+        help="evaluate the policy in an env other than its training env (--preset, --set): "
+        "the result records the differences (differs_from_training); written to --out only, "
+        "never into a policy folder",
+    )
+    e.add_argument(
         "--policy-only",
         action="store_true",
         help="skip the scripted baseline (no force reduction)",
@@ -248,11 +276,23 @@ def cmd_evaluate(args: argparse.Namespace) -> int:
     from peghole_mjx.training.evaluate import evaluate
     from peghole_mjx.validation import dumps
 
+    over = _env_sets(args)
     if args.out:  # checked before the evaluation, written after the result is printed
         fileio.check_out_file(args.out)
+        if args.cross and _in_policy_folder(args.out):
+            raise UserInputError(
+                f"--out {args.out}: a cross evaluation is not written into a policy folder "
+                "(its evaluation.json is the evaluation as trained)"
+            )
     baselines: dict = {}
     results = []
     for checkpoint in args.checkpoint:
+        if args.env:
+            from peghole_mjx.policies import load_policy
+
+            have = load_policy(checkpoint).env_name
+            if have != args.env:
+                raise UserInputError(f"{checkpoint}: a policy for {have}, not for {args.env}")
         res = evaluate(
             checkpoint,
             args.episodes,
@@ -262,6 +302,8 @@ def cmd_evaluate(args: argparse.Namespace) -> int:
             parts_dir=args.parts,
             policy_only=args.policy_only,
             baselines=baselines,
+            env_overrides=over or None,
+            cross=args.cross,
         )
         results.append(res)
         if not args.json:
@@ -274,12 +316,31 @@ def cmd_evaluate(args: argparse.Namespace) -> int:
     return 0
 
 
+def _env_sets(args: argparse.Namespace) -> dict:
+    """``--preset`` and ``--set env.KEY=VALUE`` as env config overrides."""
+    over = {}
+    for key, value in args.env_sets:
+        if not key.startswith("env."):
+            raise UserInputError(f"--set {key}=...: evaluate takes env config keys, env.KEY=VALUE")
+        over[key[len("env.") :]] = value
+    if args.preset:
+        over["preset"] = args.preset
+    return over
+
+
+def _in_policy_folder(path: Path) -> bool:
+    """``path`` is inside a folder that holds a policy (a ``policy.json``)."""
+    return any((p / "policy.json").exists() for p in Path(path).resolve().parents)
+
+
 def _print_evaluation(res: dict) -> None:
     p, b, th = res["policy"], res["baseline"], res["thesis"]
     print(
         f"{res['policy_path']}: {res['env']} ({res['preset']}), {res['episodes']} episodes, "
         f"seed {res['seed']}"
     )
+    for key, (trained, now) in res.get("differs_from_training", {}).items():
+        print(f"  cross evaluation: {key} = {now!r} (trained {trained!r})")
     print(f"{'':22s}{'policy':>10s}{'baseline':>10s}{'thesis RL':>11s}")
     rows = [
         ("success rate", "success_rate", "{:.3f}", th["success_rate"]),
