@@ -444,21 +444,11 @@ def pretrained() -> str:
         th = ev["thesis"]
         prov = pol.get("provenance", {})
         rect = name == "rect"
-        dep = pol.get("deployment")
-        deployed = (
-            "; run with "
-            + ", ".join(
-                f"{k} = {v} (trained with {dep['trained_with'][k]})"
-                for k, v in dep["env_overrides"].items()
-            )
-            if dep
-            else ""
-        )
         none = "no thesis result (R6: the dual RL study was not possible in PyBullet)"
         lines += [
             f"`{name}` ({ev['env']}, {ev['preset']}, compliance strategy "
             f"{'on' if ev['compliance_strategy'] else 'off'}; trained for {pol['env_steps']} "
-            f"env steps on {prov.get('device', '?')}{deployed}; evaluated on {ev['episodes']} "
+            f"env steps on {prov.get('device', '?')}; evaluated as trained on {ev['episodes']} "
             f"randomised episodes, seed {ev['seed']}, from "
             f"[`{path.relative_to(ROOT)}`]({path.relative_to(ROOT)}); "
             f"`peghole evaluate {name} --episodes {ev['episodes']}{_batch_flag(ev)} --json` "
@@ -612,6 +602,48 @@ def cost() -> str:
     return "\n".join(lines)
 
 
+def generalisation() -> str:
+    """The generalisation matrices (``benchmarks/generalisation.py``), one per policy file."""
+    files = sorted(RESULTS.glob("generalisation_*.json"))
+    if not files:
+        return "Not run yet (`python -m benchmarks.generalisation --policy rect`)."
+    lines = []
+    for path in files:
+        d = json.loads(path.read_text())
+        rel = path.relative_to(ROOT)
+        lines += [
+            f"`{d['policy']}` ({d['env']}, trained on {d['trained_preset']}): "
+            f"{d['episodes_per_cell']} randomised episodes per cell, seed {d['seed']}, the same "
+            f"episodes for policy and baseline; {d['device']}, {d['date'][:10]}; from "
+            f"[`{rel}`]({rel}) (`{d['command']}`)."
+            + (
+                ""
+                if d.get("complete", True)
+                else f" **Incomplete**: {len(d['cells'])} of {len(d['cells_planned'])} cells."
+            ),
+            "",
+            "| geometry | method | success | mean time s | mean F_z N | peak F_z N "
+            "| F_z vs baseline |",
+            "|---|---|---|---|---|---|---|",
+        ]
+        for c in d["cells"]:
+            name = c["cell"] if c["cell"] != "custom" else "held-out (not a preset)"
+            if c["trained_on"]:
+                name += " (trained)"
+            red = c["force_reduction_pct"]
+            for who, label in (("policy", "SAC"), ("baseline", "scripted")):
+                r = c[who]
+                geo = f"{name}: {c['describe']}" if who == "policy" else ""
+                vs = (f"{-red:+.1f} %" if red is not None else "-") if who == "policy" else ""
+                lines.append(
+                    f"| {geo} | {label} | {r['success_rate']:.3f} | "
+                    f"{_num(r['mean_time_s'], '.2f')} | {r['mean_fz_N']:#.3g} | "
+                    f"{r['peak_fz_N']:#.3g} | {vs} |"
+                )
+        lines.append("")
+    return "\n".join(lines).rstrip()
+
+
 TABLES = {
     "models_check": models_check,
     "env_rollouts": env_rollouts,
@@ -627,6 +659,7 @@ TABLES = {
     "pretrained": pretrained,
     "force_sources": force_sources,
     "rl_vs_rlcs": rl_vs_rlcs,
+    "generalisation": generalisation,
 }
 
 
@@ -642,6 +675,7 @@ TABLE_FILES = {
     "pretrained": "docs/results.md",
     "force_sources": "docs/results.md",
     "rl_vs_rlcs": "docs/results.md",
+    "generalisation": "docs/results.md",
     "throughput": "docs/benchmarks.md",
     "roofline": "docs/benchmarks.md",
     "cost": "docs/benchmarks.md",

@@ -320,3 +320,31 @@ def test_step_modules_read_no_global_limits_or_gains(module):
     names = {n.id for n in ast.walk(tree) if isinstance(n, ast.Name)}
     names |= {a.name for n in ast.walk(tree) if isinstance(n, ast.ImportFrom) for a in n.names}
     assert not names & {"LIMITS", "GAINS"}, module
+
+
+def test_geometry_entry_changes_the_preset_spec_and_refuses_bad_changes():
+    """config.geometry: a JSON object of spec fields changed from the preset's (held-out
+    geometries); a dict given as an override is stored as canonical JSON; unknown fields and
+    infeasible specs are refused in one line."""
+    from peghole_mjx.envs.config import env_spec
+    from peghole_mjx.errors import UserInputError
+    from peghole_mjx.geometry.specs import get_preset
+
+    default = envs.get_default_config("RectExtract")
+    assert default.geometry == "" and env_spec(default) == get_preset("rect-2")
+    cfg = apply_overrides(default, {"geometry": {"peg_w_mm": 59.8, "peg_v_mm": 39.8}})
+    assert cfg.geometry == '{"peg_v_mm": 39.8, "peg_w_mm": 59.8}'
+    spec = env_spec(cfg)
+    assert (spec.peg_w_mm, spec.peg_v_mm, spec.hole_w_mm) == (59.8, 39.8, 60.1)
+    dual = apply_overrides(
+        envs.get_default_config("DualExtract"), {"geometry": {"peg_radii_mm": [5.9, 5.9]}}
+    )
+    assert env_spec(dual).peg_radii_mm == (5.9, 5.9)
+    for bad, match in (
+        ({"peg_width": 50.0}, "peg_width not fields of RectSpec"),
+        ({"peg_w_mm": 61.0}, "w' < w violated"),
+        ("[1]", "must be a JSON object"),
+    ):
+        with pytest.raises(UserInputError, match=match) as err:
+            apply_overrides(default, {"geometry": bad})
+        assert "\n" not in str(err.value)

@@ -188,7 +188,10 @@ def test_evaluate_parts_folder_refuses_another_evaluation_and_shares_the_baselin
     np.savez(base_npz, **marked)
     ckpt = sorted((run.out / "checkpoints").glob("step_*"))[0]
     capped = run.env.__class__(run.env.config, {"action.max_ff_xy_N": 2.0})
-    other = evaluate(ckpt, seed=1, **{**kw, "env": capped})
+    with pytest.raises(UserInputError, match="action.max_ff_xy_N"):  # not its training env
+        evaluate(ckpt, seed=1, **{**kw, "env": capped})
+    other = evaluate(ckpt, seed=1, cross=True, **{**kw, "env": capped})
+    assert other["differs_from_training"]["action.max_ff_xy_N"][1] == 2.0
     assert len(list(ev.glob("policy-*"))) == 2
     assert other["baseline"]["mean_fz_N"] == pytest.approx(res["baseline"]["mean_fz_N"] + 100.0)
     # a baseline-relevant env change (the pulling-speed bound) is refused for the baseline
@@ -196,7 +199,7 @@ def test_evaluate_parts_folder_refuses_another_evaluation_and_shares_the_baselin
         run.env.config, {"action.max_speed_m_s": 0.5 * run.env.config.action.max_speed_m_s}
     )
     with pytest.raises(UserInputError, match=r"baseline holds .* \(differs in env_config\)"):
-        evaluate(final, seed=1, **{**kw, "env": slower})
+        evaluate(final, seed=1, cross=True, **{**kw, "env": slower})
 
 
 def test_publish_screening_picks_the_best_screened_checkpoint(trained, monkeypatch):
@@ -227,46 +230,44 @@ def _no_rollout(*args, **kwargs):
     raise AssertionError("screened again")
 
 
-def test_publish_deployment_overrides_change_the_env_and_keep_the_trained_values(trained):
-    """publish_policy.py --deploy-set: the policy's env changes, the record says from what."""
-    sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "train"))
-    from publish_policy import deployment_overrides
-
-    from peghole_mjx.policies import PolicyBundle, load_policy
-
-    run, _ = trained
-    final = load_policy(run.out / "final_policy")
-    meta = json.loads(json.dumps(final.meta))
-    trained_cfg = dict(meta["train_config"])
-    record = deployment_overrides(meta, {"action.max_ff_xy_N": 0.5})
-    assert record == {
-        "env_overrides": {"action.max_ff_xy_N": 0.5},
-        "trained_with": {"action.max_ff_xy_N": "env default"},
-    }
-    assert meta["deployment"] == record and meta["train_config"] == trained_cfg
-    env = PolicyBundle(final.path, meta, final.params).make_env()
-    assert env.config.action.max_ff_xy_N == 0.5
-    with pytest.raises(UserInputError, match="action has no 'max_ff'"):
-        deployment_overrides(meta, {"action.max_ff": 0.5})
-
-
-def test_publish_with_a_bad_deployment_key_keeps_the_published_policy(
-    trained, tmp_path, monkeypatch
-):
-    """A typo in --deploy-set fails before the committed policy folder is replaced."""
+def test_publish_has_no_deployment_option(tmp_path, monkeypatch):
+    """A published policy runs as trained: publish_policy.py takes no env changes."""
     sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "train"))
     import publish_policy
 
     from peghole_mjx import policies
 
-    run, _ = trained
+    monkeypatch.setitem(policies.PRETRAINED, "rect", tmp_path / "published")
+    argv = ["publish_policy.py", str(tmp_path), "rect", "--deploy-set", "action.max_ff_xy_N=0.5"]
+    monkeypatch.setattr(sys, "argv", argv)
+    with pytest.raises(SystemExit) as exit_:
+        publish_policy.main()
+    assert exit_.value.code == 2
+    assert not (tmp_path / "published").exists()
+
+
+def test_publish_refuses_a_checkpoint_not_in_its_training_env_and_keeps_the_published_policy(
+    tmp_path, monkeypatch
+):
+    """A checkpoint whose env_overrides contradict its training config (or that carries a
+    deployment record) fails before the published policy folder is replaced."""
+    sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "train"))
+    import publish_policy
+
+    from peghole_mjx import policies
+
+    src = tmp_path / "ckpt"
+    shutil.copytree(policies.PRETRAINED["rect"], src)
+    meta = json.loads((src / "policy.json").read_text())
+    meta["env_overrides"]["action.max_speed_m_s"] = 0.05  # trained with 0.025
+    (src / "policy.json").write_text(json.dumps(meta))
     dest = tmp_path / "published"
     dest.mkdir()
     (dest / "policy.json").write_text("{}")
     monkeypatch.setitem(policies.PRETRAINED, "rect", dest)
-    argv = ["publish_policy.py", str(run.out), "rect", "--checkpoint", "final"]
-    monkeypatch.setattr(sys, "argv", [*argv, "--deploy-set", "action.nope=1"])
-    with pytest.raises(UserInputError, match="action has no 'nope'"):
+    monkeypatch.setattr(publish_policy, "choose_checkpoint", lambda run, which: (src, {}))
+    monkeypatch.setattr(sys, "argv", ["publish_policy.py", str(tmp_path), "rect"])
+    with pytest.raises(UserInputError, match=r"action.max_speed_m_s \(0.05, trained 0.025\)"):
         publish_policy.main()
     assert (dest / "policy.json").read_text() == "{}"
 

@@ -2,7 +2,6 @@
 
     python train/publish_policy.py RUN_DIR NAME [--checkpoint best|final|STEP] [--episodes 256]
                                                 [--screen 256] [--batch 256 --parts DIR]
-                                                [--deploy-set KEY=VALUE ...]
 
 (NAME: rect, dual, rect_hard) copies the chosen policy into its ``PRETRAINED`` folder
 (``peghole_mjx/policies/*``) with the run's ``metrics.csv``, ``curves.png`` and
@@ -20,11 +19,14 @@ episodes each, too few to tell 97 % from 99 % success). The choice is recorded i
 Each checkpoint's screen is kept in ``RUN_DIR/screen_seed20000_N.json`` (with the digest of
 its parameters), so a rerun after an interrupted evaluation does not screen it again.
 
-``--deploy-set KEY=VALUE`` (env config keys, as ``peghole train --set env.KEY=VALUE``) changes
-the env the published policy runs in from the one it was trained in, e.g. a tighter force
-bound at deployment. The policy's ``env_overrides`` get the new values, and
-``policy.json``'s ``deployment`` records them beside the trained values they replace (the
-training config itself, ``train_config``, is left as trained).
+The published policy runs, and is evaluated, in exactly the env it was trained in: its
+``env_overrides`` are the checkpoint's (the training config's, plus the pins of physics
+defaults changed since training that a republished older policy carries). There is no
+publish-time change of the env (the ``--deploy-set`` option was removed on 2026-11-29: the
+dual policy it had published with a 0.5 N feed-forward bound, trained with 2 N, reported a
+number no policy had been trained for). Other env settings are an evaluation option,
+``peghole evaluate NAME --cross --set env.KEY=VALUE --out FILE``, which writes nothing into
+the policy folder.
 """
 
 from __future__ import annotations
@@ -33,8 +35,6 @@ import argparse
 import json
 import shutil
 from pathlib import Path
-
-from peghole_mjx.envs.cli import _override
 
 SCREEN_SEED = 20000  # screening episodes: disjoint from training evals (10000 + n) and seed 0
 SCREEN_WITHIN = 0.1  # screen the checkpoints whose training-eval success is this close to the best
@@ -120,21 +120,6 @@ def screen_checkpoints(
     }
 
 
-def deployment_overrides(meta: dict, new: dict) -> dict:
-    """Apply env overrides ``new`` to a policy's metadata; returns the record of what changed."""
-    from peghole_mjx.envs import load
-
-    over = dict(meta["env_overrides"])
-    load(meta["env"], config_overrides={**over, **new})  # an unknown key or bad value fails here
-    record = {
-        "env_overrides": new,
-        "trained_with": {k: over.get(k, "env default") for k in new},
-    }
-    meta["env_overrides"] = {**over, **new}
-    meta["deployment"] = record
-    return record
-
-
 def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawTextHelpFormatter)
     ap.add_argument("run", type=Path)
@@ -154,17 +139,9 @@ def main() -> int:
     ap.add_argument(
         "--candidates", type=int, nargs="+", help="with --screen: screen these steps only"
     )
-    ap.add_argument(
-        "--deploy-set",
-        action="append",
-        default=[],
-        type=_override,
-        metavar="KEY=VALUE",
-        help="run the published policy in an env changed from its training env (repeatable)",
-    )
     args = ap.parse_args()
 
-    from peghole_mjx.policies import PRETRAINED, upgrade_policy
+    from peghole_mjx.policies import PRETRAINED, check_as_trained, upgrade_policy
     from peghole_mjx.training.evaluate import evaluate
 
     if args.screen > 0:
@@ -173,8 +150,7 @@ def main() -> int:
         src, selection = choose_checkpoint(args.run, args.checkpoint)
     meta = json.loads((src / "policy.json").read_text())
     meta["selection"] = selection
-    if args.deploy_set:  # before the published policy is replaced: a bad key loses nothing
-        deployment_overrides(meta, dict(args.deploy_set))
+    check_as_trained(meta, str(src))  # before the published policy is replaced
     dest = PRETRAINED[args.name]
     if dest.exists():
         shutil.rmtree(dest)

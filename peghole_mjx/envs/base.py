@@ -24,11 +24,11 @@ from peghole_mjx._mjx import WARP_AVAILABLE, mjx
 from peghole_mjx.control import ControlLimits, ImpedanceController
 from peghole_mjx.control.kinematics import point_on_body, rotvec_from_mat
 from peghole_mjx.envs import iiwa_constants as names
-from peghole_mjx.envs.config import apply_overrides, base_config, sim_options
+from peghole_mjx.envs.config import apply_overrides, base_config, env_spec, sim_options
 from peghole_mjx.errors import UserInputError
 from peghole_mjx.geometry.mjcf import TOOL_DOWN_MAT, build_scene
 from peghole_mjx.geometry.parts import resolve_representation
-from peghole_mjx.geometry.specs import MM, PegHoleSpec, get_preset
+from peghole_mjx.geometry.specs import MM, PegHoleSpec
 
 __all__ = ["PegHoleBase", "State", "base_config", "contact_overflow"]
 
@@ -87,7 +87,7 @@ class PegHoleBase:
         if abs(n_sub - round(n_sub)) > 1e-6 or n_sub < 1:
             raise UserInputError("ctrl_dt must be a whole multiple of sim_dt")
         self._n_substeps = round(n_sub)
-        self.spec: PegHoleSpec = get_preset(config.preset)
+        self.spec: PegHoleSpec = env_spec(config)
         #: the peg length (m), the scale of the flange height and L_C
         self.peg_length_m = self.spec.length_mm * MM
         self.representation = resolve_representation(

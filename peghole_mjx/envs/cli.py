@@ -90,6 +90,14 @@ def cmd_rollout(args: argparse.Namespace) -> int:
     if env.spec.kind != ("rect" if args.env == "RectExtract" else "dual"):
         raise UserInputError(f"preset {env.config.preset} does not fit {args.env}")
     if bundle is not None:
+        from peghole_mjx.training.evaluate import config_differences
+
+        for key, (trained, now) in config_differences(bundle, env.config).items():
+            # an exploration of other settings: said, never written into the policy folder
+            print(
+                f"not the policy's training env: {key} = {now!r} (trained {trained!r})",
+                file=sys.stderr,
+            )
         policy, params = bundle.policy_fn(), bundle.params
     else:
         policy = make_policy(env, args.policy)

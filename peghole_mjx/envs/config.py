@@ -9,15 +9,17 @@ REWARD_WEIGHTS`), the simulator step (:class:`~peghole_mjx.geometry.mjcf.SimOpti
 
 from __future__ import annotations
 
+import dataclasses
+import json
 import math
 
 from ml_collections import config_dict
 
 from peghole_mjx.control import GAINS, LIMITS
 from peghole_mjx.envs.reward import REWARD_WEIGHTS
-from peghole_mjx.errors import UserInputError
+from peghole_mjx.errors import InfeasibleGeometryError, UserInputError
 from peghole_mjx.geometry.mjcf import SimOptions
-from peghole_mjx.geometry.specs import MM, get_preset
+from peghole_mjx.geometry.specs import MM, PegHoleSpec, get_preset, with_changes
 
 
 def base_config(preset: str) -> config_dict.ConfigDict:
@@ -25,6 +27,10 @@ def base_config(preset: str) -> config_dict.ConfigDict:
     get_preset(preset)  # an unknown preset fails here
     return config_dict.create(
         preset=preset,
+        # a peg-hole other than the preset's (held-out geometries): a JSON object of the
+        # preset spec's fields to change, in mm, e.g. '{"peg_w_mm": 49.9, "hole_w_mm": 50.1}'
+        # (geometry/specs.py RectSpec, DualSpec; checked by specs.validate). "": the preset's
+        geometry="",
         impl="jax",  # "jax" (CPU, GPU) or "warp" (CUDA GPU)
         # collision representation of the parts (geometry/parts.py); None: the preset's default
         # (dual "capsule", GPU-scale; rect "edges", edge-capsule contacts); also dual "mesh"
@@ -123,6 +129,44 @@ def base_config(preset: str) -> config_dict.ConfigDict:
     )
 
 
+def env_spec(config: config_dict.ConfigDict) -> PegHoleSpec:
+    """The peg-hole of an env config: the preset's spec with ``geometry``'s changes."""
+    spec = get_preset(config.preset)
+    text = config.get("geometry", "")
+    if not text:
+        return spec
+    try:
+        changes = json.loads(text)
+    except ValueError:
+        changes = None
+    if not isinstance(changes, dict) or not changes:
+        raise UserInputError(
+            f"env config geometry must be a JSON object of spec fields, got {text!r}"
+        )
+    fields = {f.name for f in dataclasses.fields(spec) if f.init}
+    unknown = sorted(set(changes) - fields)
+    if unknown:
+        raise UserInputError(
+            f"env config geometry: {', '.join(unknown)} not fields of {type(spec).__name__} "
+            f"(it has: {', '.join(sorted(fields))})"
+        )
+    changes = {k: tuple(v) if isinstance(v, list) else v for k, v in changes.items()}
+    try:
+        return with_changes(spec, **changes)
+    except (InfeasibleGeometryError, TypeError) as exc:
+        raise UserInputError(f"env config geometry {text}: {exc}") from None
+
+
+def geometry_text(changes: dict | str) -> str:
+    """The ``geometry`` config entry for spec ``changes`` (a canonical JSON object)."""
+    if isinstance(changes, str):
+        return changes
+    return json.dumps(
+        {k: list(v) if isinstance(v, tuple) else v for k, v in changes.items()},
+        sort_keys=True,
+    )
+
+
 def sim_options(config: config_dict.ConfigDict) -> SimOptions:
     """The simulator options of an env config (its step and ``contact`` group)."""
     c = config.contact
@@ -144,6 +188,8 @@ def apply_overrides(
     config = config_dict.ConfigDict(config)
     if overrides:
         check_override_keys(config, overrides)
+        if isinstance(overrides.get("geometry"), dict):  # --set env.geometry={...} parses to a dict
+            overrides = {**overrides, "geometry": geometry_text(overrides["geometry"])}
         try:
             config.update_from_flattened_dict(overrides)
         except (TypeError, ValueError) as exc:
@@ -192,7 +238,7 @@ def check_config_values(config: config_dict.ConfigDict) -> None:
             len(pair) == 2 and 0 <= pair[0] <= pair[1],
             f"randomization.{key} must be a range (lo, hi) with 0 <= lo <= hi, got {pair!r}",
         )
-    mu = get_preset(config.preset).friction * r.friction_scale[1]
+    mu = env_spec(config).friction * r.friction_scale[1]
     fr = RANGES["friction"]
     need(
         fr.problem(mu) is None,

@@ -3,11 +3,14 @@
 A policy directory holds two files:
 
 * ``policy.json``: the env name and its config overrides (so the env is rebuilt exactly as
-  trained, or as deployed), the network (hidden sizes, observation and action sizes,
-  normalisation), the training hyperparameters and where the policy came from; optionally
-  ``deployment``: env overrides set when the policy was published that differ from its
-  training env (e.g. a tighter force bound), with the trained values
-  (``train/publish_policy.py --deploy-set``);
+  trained: every entry of the training config's ``env_overrides`` with its trained value, plus
+  pins of physics defaults changed since, ``env_overrides_note``), the network (hidden sizes,
+  observation and action sizes, normalisation), the training hyperparameters and where the
+  policy came from. A policy is published and evaluated in its training env: a folder whose
+  ``env_overrides`` contradict its ``train_config``, or that carries a ``deployment`` record
+  (env settings changed when it was published, a mechanism removed on 2026-11-29), is
+  refused in one line; other envs are an evaluation option (``peghole evaluate --cross``)
+  that writes only to its own output;
 * ``params.npz``: the observation normaliser and the policy network's parameters (Brax SAC
   layout), one array per leaf named by its tree path (``0/mean``, ``1/params/hidden_0/kernel``;
   :mod:`peghole_mjx.treenames`).
@@ -69,7 +72,8 @@ class PolicyBundle:
         return dict(self.meta.get("env_overrides", {}))
 
     def make_env(self, extra_overrides: dict | None = None):
-        """The env the policy was trained on (plus ``extra_overrides``)."""
+        """The env the policy was trained on; ``extra_overrides`` change it (a cross
+        evaluation: :func:`peghole_mjx.training.evaluate.evaluate` with ``cross=True``)."""
         from peghole_mjx.envs import load
 
         over = {**self.env_overrides, **(extra_overrides or {})}
@@ -229,6 +233,7 @@ def check_meta(meta: Any, where: str) -> dict[str, Any]:
         f"env {env!r}, but the policy was trained on {trained_on!r} (relabelled policy)",
     )
     need(isinstance(meta.get("env_overrides", {}), dict), "env_overrides is not an object")
+    check_as_trained(meta, where)
     net = meta.get("network")
     need(isinstance(net, dict), "no network description ('network')")
     for key in ("observation_size", "action_size"):
@@ -247,6 +252,27 @@ def check_meta(meta: Any, where: str) -> dict[str, Any]:
         "network.normalize_observations must be true or false",
     )
     return meta
+
+
+def check_as_trained(meta: dict[str, Any], where: str) -> None:
+    """Refuse (:class:`UserInputError`, one line) a policy that would run in an env other than
+    its training env: a ``deployment`` record, or an ``env_overrides`` entry that differs from
+    the training config's (``train_config.env_overrides``)."""
+    if "deployment" in meta:
+        raise UserInputError(
+            f"{where}: carries a 'deployment' record (env settings changed after training); "
+            "a published policy runs as trained: republish it (train/publish_policy.py), or "
+            "evaluate another env with peghole evaluate --cross --set env.KEY=VALUE"
+        )
+    trained = (meta.get("train_config") or {}).get("env_overrides") or {}
+    have = meta.get("env_overrides", {})
+    differ = sorted(k for k, v in trained.items() if k not in have or have[k] != v)
+    if differ:
+        raise UserInputError(
+            f"{where}: env_overrides differ from the training config in "
+            + ", ".join(f"{k} ({have.get(k, 'unset')!r}, trained {trained[k]!r})" for k in differ)
+            + "; a published policy runs as trained"
+        )
 
 
 def load_policy(name: str | Path) -> PolicyBundle:
@@ -337,6 +363,7 @@ def upgrade_policy(path: str | Path) -> bool:
 __all__ = [
     "PRETRAINED",
     "PolicyBundle",
+    "check_as_trained",
     "check_meta",
     "init_params",
     "load_policy",

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import json
 import math
 import sys
 from pathlib import Path
@@ -60,6 +61,15 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
         "process count and index from JAX_COORDINATOR_ADDRESS, JAX_NUM_PROCESSES, "
         "JAX_PROCESS_ID or the cluster launcher); give each process its own --out",
     )
+    t.add_argument(
+        "--seeds",
+        type=int,
+        default=None,
+        metavar="N",
+        help="train N seeds (seed, seed+1, ...) in one compiled call (make_train vmapped over "
+        "the seeds' keys): per-seed policies, history.csv, seeds.json with 95 %% intervals over "
+        "seeds and banded curves (training/seeds.py); resumable with --resume DIR",
+    )
     t.add_argument("--no-progress", action="store_true", help="no progress bar")
     t.add_argument("--no-video", action="store_true", help="skip the final rollout GIF")
     t.add_argument(
@@ -82,6 +92,34 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
         "baseline run once per env), and --json / --out then give a list.",
     )
     e.add_argument("checkpoint", nargs="+")
+    e.add_argument(
+        "--env",
+        choices=ALL_ENVS,
+        help="the env the policy must have been trained on (refused in one line if not)",
+    )
+    e.add_argument(
+        "--preset",
+        help="evaluate on this preset; refused unless it is the policy's training preset, or "
+        "--cross is given",
+    )
+    e.add_argument(
+        "--set",
+        dest="env_sets",
+        type=_override,
+        action="append",
+        default=[],
+        metavar="env.KEY=VALUE",
+        help="an env config entry for this evaluation, e.g. --set env.action.max_ff_xy_N=0.5 "
+        "or --set 'env.geometry={\"peg_w_mm\": 59.8}'; refused unless it equals the training "
+        "value, or --cross is given",
+    )
+    e.add_argument(
+        "--cross",
+        action="store_true",
+        help="evaluate the policy in an env other than its training env (--preset, --set): "
+        "the result records the differences (differs_from_training); written to --out only, "
+        "never into a policy folder",
+    )
     e.add_argument(
         "--policy-only",
         action="store_true",
@@ -131,15 +169,30 @@ def train_config_from_args(args: argparse.Namespace):
     )
 
 
+def fresh_run_config(args: argparse.Namespace):
+    """The config of a new run in ``--out`` (refused when ``--out`` already holds one)."""
+    if not args.env or not args.out:
+        raise UserInputError("--env and --out are required (or --resume DIR)")
+    cfg = train_config_from_args(args)
+    fileio.check_out_dir(args.out)
+    if (args.out / "run.json").exists():
+        raise UserInputError(
+            f"{args.out} already holds a training run: use --resume {args.out} or a new --out"
+        )
+    return cfg
+
+
 def cmd_train(args: argparse.Namespace) -> int:
     from peghole_mjx.training.lock import RunLock
     from peghole_mjx.training.run import TrainingRun
 
+    progress = not args.no_progress
+    if args.seeds is not None or (args.resume and _is_seeds_run(args.resume)):
+        return _train_seeds(args, progress)
     if args.distributed:  # before anything of JAX runs
         from peghole_mjx.training.distributed import initialize
 
         initialize()
-    progress = not args.no_progress
     if args.resume:
         over = dict(args.overrides)
         if args.env or set(over) - {"num_timesteps"}:
@@ -162,14 +215,7 @@ def cmd_train(args: argparse.Namespace) -> int:
             run.stop_at_success = args.stop_at_success
             summary = run.run(resume=True)
     else:
-        if not args.env or not args.out:
-            raise UserInputError("--env and --out are required (or --resume DIR)")
-        cfg = train_config_from_args(args)
-        fileio.check_out_dir(args.out)
-        if (args.out / "run.json").exists():
-            raise UserInputError(
-                f"{args.out} already holds a training run: use --resume {args.out} or a new --out"
-            )
+        cfg = fresh_run_config(args)
         with RunLock(args.out) as lock:
             run = TrainingRun(
                 cfg,
@@ -191,6 +237,37 @@ def cmd_train(args: argparse.Namespace) -> int:
     return 0
 
 
+def _is_seeds_run(out: Path) -> bool:
+    try:
+        return "seeds" in json.loads((out / "run.json").read_text())
+    except (OSError, ValueError, TypeError):
+        return False
+
+
+def _train_seeds(args: argparse.Namespace, progress: bool) -> int:
+    """``peghole train --seeds N`` (or ``--resume`` of such a run): training/seeds.py."""
+    from peghole_mjx.training.seeds import SeedsRun
+
+    if args.distributed or args.stop_at_success is not None:
+        raise UserInputError("--seeds takes neither --distributed nor --stop-at-success")
+    if args.resume:
+        if args.env or args.overrides or args.seeds is not None:
+            raise UserInputError("--resume takes the run's own config: drop --env, --set, --seeds")
+        run = SeedsRun.resume(args.resume, progress=progress)
+        summary = run.run(resume=True)
+    else:
+        cfg = fresh_run_config(args)
+        run = SeedsRun(cfg, args.seeds, args.out, progress=progress)
+        summary = run.run(resume=False)
+    over = summary["final_eval_over_seeds"]
+    for key in ("success_rate", "mean_fz_N", "mean_fxy_N"):
+        ci = over.get(key, {}).get("ci95_t")
+        ci_text = f" [{ci[0]:.3g}, {ci[1]:.3g}]" if ci else ""
+        print(f"{key}: mean over seeds {_num(over.get(key, {}).get('mean'), '.3g')}{ci_text}")
+    print(f"{summary['env']}: {len(summary['seeds'])} seeds; outputs in {run.out}")
+    return 0
+
+
 def _num(v, fmt: str) -> str:
     return "n/a" if v is None or (isinstance(v, float) and math.isnan(v)) else format(v, fmt)
 
@@ -199,11 +276,23 @@ def cmd_evaluate(args: argparse.Namespace) -> int:
     from peghole_mjx.training.evaluate import evaluate
     from peghole_mjx.validation import dumps
 
+    over = _env_sets(args)
     if args.out:  # checked before the evaluation, written after the result is printed
         fileio.check_out_file(args.out)
+        if args.cross and _in_policy_folder(args.out):
+            raise UserInputError(
+                f"--out {args.out}: a cross evaluation is not written into a policy folder "
+                "(its evaluation.json is the evaluation as trained)"
+            )
     baselines: dict = {}
     results = []
     for checkpoint in args.checkpoint:
+        if args.env:
+            from peghole_mjx.policies import load_policy
+
+            have = load_policy(checkpoint).env_name
+            if have != args.env:
+                raise UserInputError(f"{checkpoint}: a policy for {have}, not for {args.env}")
         res = evaluate(
             checkpoint,
             args.episodes,
@@ -213,6 +302,8 @@ def cmd_evaluate(args: argparse.Namespace) -> int:
             parts_dir=args.parts,
             policy_only=args.policy_only,
             baselines=baselines,
+            env_overrides=over or None,
+            cross=args.cross,
         )
         results.append(res)
         if not args.json:
@@ -225,12 +316,31 @@ def cmd_evaluate(args: argparse.Namespace) -> int:
     return 0
 
 
+def _env_sets(args: argparse.Namespace) -> dict:
+    """``--preset`` and ``--set env.KEY=VALUE`` as env config overrides."""
+    over = {}
+    for key, value in args.env_sets:
+        if not key.startswith("env."):
+            raise UserInputError(f"--set {key}=...: evaluate takes env config keys, env.KEY=VALUE")
+        over[key[len("env.") :]] = value
+    if args.preset:
+        over["preset"] = args.preset
+    return over
+
+
+def _in_policy_folder(path: Path) -> bool:
+    """``path`` is inside a folder that holds a policy (a ``policy.json``)."""
+    return any((p / "policy.json").exists() for p in Path(path).resolve().parents)
+
+
 def _print_evaluation(res: dict) -> None:
     p, b, th = res["policy"], res["baseline"], res["thesis"]
     print(
         f"{res['policy_path']}: {res['env']} ({res['preset']}), {res['episodes']} episodes, "
         f"seed {res['seed']}"
     )
+    for key, (trained, now) in res.get("differs_from_training", {}).items():
+        print(f"  cross evaluation: {key} = {now!r} (trained {trained!r})")
     print(f"{'':22s}{'policy':>10s}{'baseline':>10s}{'thesis RL':>11s}")
     rows = [
         ("success rate", "success_rate", "{:.3f}", th["success_rate"]),

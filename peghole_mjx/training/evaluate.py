@@ -49,6 +49,8 @@ BASELINE_IGNORED_CONFIG = (
 
 def _config_key(env, ignored=()) -> str:
     cfg = json.loads(env.config.to_json())
+    if not cfg.get("geometry"):  # the preset's own geometry: keys as before the entry existed
+        cfg.pop("geometry", None)
     for dotted in ignored:
         *path, leaf = dotted.split(".")
         node = cfg
@@ -116,6 +118,51 @@ def _parts_dirs(parts_dir, bundle, env, seed, batch):
     return _keyed_dir(policy_dir, policy_key), baseline_dir
 
 
+def _flat(tree: dict, prefix: str = "") -> dict[str, Any]:
+    out: dict[str, Any] = {}
+    for k, v in tree.items():
+        if isinstance(v, dict):
+            out.update(_flat(v, f"{prefix}{k}."))
+        else:
+            out[f"{prefix}{k}"] = list(v) if isinstance(v, tuple) else v
+    return out
+
+
+def config_differences(bundle: PolicyBundle, config) -> dict[str, list]:
+    """``{dotted key: [trained value, requested value]}`` for every entry of the env config
+    ``config`` that differs from the policy's training env config (its ``env_overrides`` on
+    the env's defaults)."""
+    from peghole_mjx.envs import get_default_config
+    from peghole_mjx.envs.config import apply_overrides
+
+    trained = apply_overrides(get_default_config(bundle.env_name), bundle.env_overrides)
+    a, b = _flat(json.loads(trained.to_json())), _flat(json.loads(config.to_json()))
+    return {k: [a.get(k), b.get(k)] for k in sorted(a.keys() | b.keys()) if a.get(k) != b.get(k)}
+
+
+def requested_config(bundle: PolicyBundle, env_overrides: dict | None):
+    """The env config of ``bundle``'s training env with ``env_overrides`` (not built)."""
+    from peghole_mjx.envs import get_default_config
+    from peghole_mjx.envs.config import apply_overrides
+
+    over = {**bundle.env_overrides, **(env_overrides or {})}
+    return apply_overrides(get_default_config(bundle.env_name), over)
+
+
+def check_requested_env(bundle: PolicyBundle, config, cross: bool) -> dict[str, list]:
+    """The differences of ``config`` from the policy's training env (:func:`config_differences`);
+    refused in one line unless ``cross`` (an explicit cross evaluation)."""
+    diff = config_differences(bundle, config)
+    if diff and not cross:
+        shown = ", ".join(f"{k} (trained {a!r}, requested {b!r})" for k, (a, b) in diff.items())
+        raise UserInputError(
+            f"{bundle.path}: the requested env differs from the policy's training env in "
+            f"{shown}; a policy is evaluated as trained (pass --cross / cross=True to evaluate "
+            "it in another env)"
+        )
+    return diff
+
+
 def evaluate(
     policy: str | PolicyBundle,
     episodes: int,
@@ -127,6 +174,7 @@ def evaluate(
     parts_dir: str | Path | None = None,
     policy_only: bool = False,
     baselines: dict[str, dict[str, Any]] | None = None,
+    cross: bool = False,
 ) -> dict[str, Any]:
     """``{"policy", "baseline", "force_reduction_pct", "episodes", ...}`` (see module doc).
 
@@ -134,6 +182,9 @@ def evaluate(
     ``baselines``: baseline summaries by episodes key (filled here), so several policies
     evaluated on the same episodes and env run the baseline once.
     ``env``: an already built env of the policy's config (reuses its compiled rollouts).
+    ``env_overrides`` (or ``env``) other than the policy's training env config are refused
+    (:func:`check_requested_env`) unless ``cross``: a cross evaluation (another preset,
+    geometry or setting); its result records the differences (``differs_from_training``).
     ``batch``: worlds run at once (default: all ``episodes``). ``parts_dir``: finished slices
     of ``batch`` episodes are saved there, and a rerun with the same policy, env, seed and
     batch loads them (a long evaluation survives an interruption or is extended to more
@@ -142,8 +193,12 @@ def evaluate(
     """
     bundle = policy if isinstance(policy, PolicyBundle) else load_policy(policy)
     if env is not None:
+        if env_overrides:
+            raise ValueError("give env or env_overrides, not both")
         bundle.check_env(env)
-    else:
+        diff = check_requested_env(bundle, env.config, cross)
+    else:  # checked before the env is built
+        diff = check_requested_env(bundle, requested_config(bundle, env_overrides), cross)
         env = bundle.make_env(env_overrides)
     parts = _parts_dirs(parts_dir, bundle, env, seed, batch or episodes)
     kw = dict(seed=seed, progress=progress, batch=batch)
@@ -169,7 +224,10 @@ def evaluate(
         "seed": seed,
         "env": bundle.env_name,
         "preset": env.config.preset,
+        "geometry": env.config.geometry or None,  # spec changes from the preset's, if any
         "compliance_strategy": bool(env.config.compliance_strategy),
+        # {key: [trained, evaluated]}: empty for an evaluation as trained
+        "differs_from_training": diff,
         "policy_path": str(bundle.path),
         "thesis": THESIS_RL,
     }

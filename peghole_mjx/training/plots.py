@@ -67,27 +67,74 @@ def plot_curves(runs: list[Path], out: Path, title: str | None = None) -> Path:
         rows = read_metrics(run)
         color = f"C{i}"
         label = run_label(run)
-        for ax, (key, ylabel, fig_ref) in zip(axes.flat, PANELS, strict=True):
+        for ax, (key, _, _) in zip(axes.flat, PANELS, strict=True):
             x, y = _column(rows, f"train/{key}")
             if len(x):
                 ax.plot(x, y, color=color, lw=1.2, label=f"{label} (training episodes)")
             x, y = _column(rows, f"eval/{key}")
             if len(x):
                 ax.plot(x, y, "o--", color=color, ms=4, lw=0.8, label=f"{label} (eval)")
-            ax.set_ylabel(ylabel)
-            if fig_ref:
-                ax.set_title(f"cf. thesis {fig_ref}", fontsize=9, loc="right")
-            ax.grid(alpha=0.3)
+    return _finish(fig, axes, title or "SAC learning curves", out)
+
+
+def _finish(fig, axes, title: str, out: Path) -> Path:
+    """Label the four panels, then write the figure atomically (a failed write keeps the
+    old one)."""
+    import matplotlib.pyplot as plt
+
+    from peghole_mjx import fileio
+
+    for ax, (_, ylabel, fig_ref) in zip(axes.flat, PANELS, strict=True):
+        ax.set_ylabel(ylabel)
+        if fig_ref:
+            ax.set_title(f"cf. thesis {fig_ref}", fontsize=9, loc="right")
+        ax.grid(alpha=0.3)
     for ax in axes[1]:
         ax.set_xlabel("env steps")
     axes[0, 0].legend(fontsize=7)
-    fig.suptitle(title or "SAC learning curves")
+    fig.suptitle(title)
     fig.tight_layout()
-    from peghole_mjx import fileio
-
     out = Path(out)
     out.parent.mkdir(parents=True, exist_ok=True)
-    with fileio.atomic_open(out, "wb") as fh:  # a failed write keeps the old figure
+    with fileio.atomic_open(out, "wb") as fh:
         fig.savefig(fh, dpi=110, format=out.suffix.lstrip(".").lower() or "png")
     plt.close(fig)
     return out
+
+
+def plot_seed_bands(runs: list[Path], out: Path, title: str | None = None) -> Path:
+    """The four panels for multi-seed runs (``peghole train --seeds N``): the training
+    episodes' statistics per chunk, mean over seeds with a 95 % Student-t band; returns ``out``."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    from peghole_mjx.training.seeds import t_interval
+
+    fig, axes = plt.subplots(2, 2, figsize=(11, 7.5), sharex=True)
+    for i, run in enumerate(runs):
+        run = Path(run)
+        path = run / "history.csv"
+        if not path.exists():
+            raise UserInputError(f"{run}: no history.csv (not a multi-seed training run)")
+        with path.open() as f:
+            rows = list(csv.DictReader(f))
+        n_seeds = len({r["seed"] for r in rows})
+        label = f"{run_label(run)}, {n_seeds} seeds"
+        steps = sorted({int(r["step"]) for r in rows})
+        for ax, (key, _, _) in zip(axes.flat, PANELS, strict=True):
+            mean, lo, hi = [], [], []
+            for s in steps:
+                vals = [
+                    float(r[f"train/{key}"])
+                    for r in rows
+                    if int(r["step"]) == s and r.get(f"train/{key}", "") not in ("", "nan")
+                ]
+                ci = t_interval(vals)
+                mean.append(np.mean(vals) if vals else np.nan)
+                lo.append(ci[0] if ci else np.nan)
+                hi.append(ci[1] if ci else np.nan)
+            ax.plot(steps, mean, color=f"C{i}", lw=1.4, label=label)
+            ax.fill_between(steps, lo, hi, color=f"C{i}", alpha=0.25, lw=0)
+    return _finish(fig, axes, title or "SAC training episodes: mean over seeds, 95 % band", out)

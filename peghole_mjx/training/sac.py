@@ -96,10 +96,14 @@ _BARRIERS = itertools.count()
 class SACTrainer:
     """Jitted (pmapped) pieces of a SAC run: ``init``, ``prefill``, ``train_call``."""
 
-    def __init__(self, env: PegHoleEnv, cfg: TrainConfig):
+    def __init__(self, env: PegHoleEnv, cfg: TrainConfig, single_device: bool = False):
+        """``single_device``: one learner on one device, whatever the device count (the
+        pure :func:`peghole_mjx.training.functional.make_train`; ``init``/``train_call``
+        are then not for use)."""
         self.env, self.cfg = env, cfg
-        self.n_dev = jax.local_device_count()  # the pmap's width in this process
-        n_all = jax.device_count()  # every process's devices (= n_dev in one process)
+        # the pmap's width in this process, and every process's devices
+        self.n_dev = 1 if single_device else jax.local_device_count()
+        n_all = 1 if single_device else jax.device_count()
         if cfg.num_envs % n_all:
             raise UserInputError(
                 f"num_envs ({cfg.num_envs}) must be divisible by the device count ({n_all})"

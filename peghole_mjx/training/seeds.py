@@ -1,0 +1,277 @@
+"""Several seeds of one SAC config trained in one compiled call: ``peghole train --seeds N``.
+
+The thin driver around :func:`peghole_mjx.training.functional.make_train`:
+``jax.vmap`` over the seeds' keys (seed ``cfg.seed + k``), run in chunks of ``eval_every``
+env steps with a checkpoint after each chunk. Layout of ``--out DIR``::
+
+    run.json            config, seeds, network, device, versions, start date
+    history.csv         one row per seed and chunk: env steps and the finished training
+                        episodes' statistics (success, F_z, |F_xy|, return, ...) and losses
+    checkpoints/step_N/ the stacked carry of all seeds (orbax, by tree path; atomic write,
+                        SHA-256 manifest, fallback to the previous one: training/checkpoints.py)
+    seed_K/final_policy/ seed K's final policy (``peghole evaluate DIR/seed_K/final_policy``)
+    seeds.json          each seed's final evaluation (``num_eval_envs`` episodes, the same
+                        episodes for every seed) and the mean over seeds with a 95 %
+                        Student-t interval
+    curves.png          the training episodes' F_z, |F_xy|, discounted return and success per
+                        chunk: mean over seeds with the 95 % band (thesis Figs 4.5-4.7)
+
+``--resume DIR`` continues from the newest valid checkpoint (rows of ``history.csv`` after it
+are redone). The seeds' worlds, replay buffers and learners are independent: a seed's run is
+bit-identical whatever the other seeds of the call (tested).
+"""
+
+from __future__ import annotations
+
+import csv
+import json
+import math
+import sys
+from pathlib import Path
+from typing import Any
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+from peghole_mjx import fileio
+from peghole_mjx.envs.metrics import EVAL_STATS, TOTAL_KEYS, TRAIN_STATS, summarize_totals
+from peghole_mjx.errors import CorruptFileError, UserInputError
+from peghole_mjx.provenance import provenance
+from peghole_mjx.training import checkpoints
+from peghole_mjx.training.config import TrainConfig
+from peghole_mjx.training.functional import make_train
+
+#: the losses logged per chunk (means over its calls)
+LOSSES = ("loss/critic", "loss/actor", "loss/alpha", "alpha")
+HISTORY_COLUMNS = ("seed", "step", *(f"train/{k}" for k in TRAIN_STATS), *LOSSES)
+#: evaluation seed offset (as TrainingRun's evaluations: cfg.seed + 10 000 + k)
+EVAL_SEED_OFFSET = 10_000
+
+
+def t_interval(values: list[float], level: float = 0.95) -> list[float] | None:
+    """The ``level`` Student-t interval of the mean of ``values`` (None for fewer than 2)."""
+    from scipy import stats
+
+    v = np.asarray([x for x in values if math.isfinite(x)], float)
+    if len(v) < 2:
+        return None
+    half = stats.t.ppf(0.5 + level / 2, len(v) - 1) * v.std(ddof=1) / math.sqrt(len(v))
+    return [float(v.mean() - half), float(v.mean() + half)]
+
+
+class SeedsRun:
+    """``seeds`` SAC runs of ``cfg`` (seeds ``cfg.seed`` ... ``cfg.seed + seeds - 1``)."""
+
+    def __init__(self, cfg: TrainConfig, seeds: int, out: str | Path, progress: bool = True):
+        from peghole_mjx.envs import load
+
+        if not isinstance(seeds, int) or seeds < 1:
+            raise UserInputError(f"--seeds must be a whole number >= 1, got {seeds!r}")
+        self.cfg, self.seeds, self.out, self.progress = cfg, seeds, Path(out), progress
+        self.env = load(cfg.env, config_overrides=cfg.env_overrides or None)
+        self.train = make_train(self.env, cfg)
+        self.keys = jnp.stack([jax.random.PRNGKey(cfg.seed + k) for k in range(seeds)])
+        self.chunk_calls = max(1, cfg.eval_every // self.train.steps_per_call)
+        self.ckpt_dir = self.out / "checkpoints"
+        self._init = jax.jit(jax.vmap(self.train.init))
+        self._call = jax.jit(jax.vmap(self.train.call, in_axes=(0, None)))
+
+    @classmethod
+    def resume(cls, out: str | Path, progress: bool = True) -> SeedsRun:
+        path = Path(out) / "run.json"
+        try:
+            meta = json.loads(path.read_text())
+            cfg, seeds = TrainConfig.from_dict(meta["config"]), meta["seeds"]
+        except FileNotFoundError:
+            raise UserInputError(f"--resume: {path} not found (not a training run)") from None
+        except (ValueError, KeyError, TypeError) as exc:
+            raise CorruptFileError(f"{path} is not a readable multi-seed run ({exc})") from None
+        return cls(cfg, seeds, out, progress)
+
+    # ------------------------------------------------------------------ state I/O
+    def _template(self):
+        shapes = jax.eval_shape(self._init, self.keys)
+        return jax.tree.map(lambda s: np.zeros(s.shape, s.dtype), shapes)
+
+    def _load(self, path: Path):
+        sched = json.loads((path / "state.json").read_text())
+        if not isinstance(sched, dict) or not isinstance(sched.get("step"), int):
+            raise CorruptFileError(f"{path}/state.json holds no step")
+        host = checkpoints.restore_state(path, self._template(), sched.pop("empty_leaves", {}))
+        return jax.tree.map(jnp.asarray, host), sched["step"]
+
+    def _save(self, carry, step: int) -> None:
+        host = jax.device_get(carry)
+
+        def write_files(folder: Path) -> None:
+            for k in range(self.seeds):
+                self._save_policy(folder / f"seed_{k}", host, k, step, atomic=False)
+            saved = checkpoints.save_state(folder, host)
+            fileio.write_text(folder / "state.json", json.dumps({"step": step, **saved}) + "\n")
+
+        checkpoints.write(self.ckpt_dir, step, write_files)
+
+    def _save_policy(self, path: Path, carry, k: int, step: int, atomic: bool = True) -> None:
+        from peghole_mjx.policies import save_policy
+
+        params = _seed_slice(self.train.policy_params(carry), k)
+        cfg = {**self.cfg.as_dict(), "seed": self.cfg.seed + k}
+        meta = {
+            "env": self.cfg.env,
+            "env_overrides": self.cfg.env_overrides,
+            "network": self.train.network,
+            "train_config": cfg,
+            "env_steps": step,
+            "provenance": provenance(),
+        }
+        save_policy(path, params, meta, atomic=atomic)
+
+    # ------------------------------------------------------------------ history
+    def _rows(self, upto: int | None = None) -> list[dict[str, str]]:
+        path = self.out / "history.csv"
+        if not path.exists():
+            return []
+        with path.open() as f:
+            rows = list(csv.DictReader(f))
+        return [r for r in rows if upto is None or int(r["step"]) <= upto]
+
+    def _write_rows(self, rows: list[dict[str, Any]]) -> None:
+        def write(fh) -> None:
+            w = csv.DictWriter(fh, fieldnames=HISTORY_COLUMNS, extrasaction="ignore")
+            w.writeheader()
+            w.writerows(rows)
+
+        with fileio.atomic_open(self.out / "history.csv", "w") as fh:
+            write(fh)
+
+    def _chunk_rows(self, calls: list[tuple[bool, dict]], step: int) -> list[dict[str, Any]]:
+        """One row per seed: the training episodes that ended in ``calls`` (``(learn,
+        history)`` pairs; the prefill calls are in the first chunk) and the learning calls'
+        mean losses."""
+        rows = []
+        learning = [h for learn, h in calls if learn]
+        calls = [h for _, h in calls]
+        for k in range(self.seeds):
+            totals = {key: float(sum(np.sum(c[key][k]) for c in calls)) for key in TOTAL_KEYS}
+            stats = summarize_totals(totals)
+            row: dict[str, Any] = {"seed": self.cfg.seed + k, "step": step}
+            row.update({f"train/{s}": _fmt(stats[s]) for s in TRAIN_STATS if s in stats})
+            row.update({m: _fmt(float(np.mean([c[m][k] for c in learning]))) for m in LOSSES})
+            rows.append(row)
+        return rows
+
+    # ------------------------------------------------------------------ main loop
+    def run(self, resume: bool = False) -> dict[str, Any]:
+        from tqdm import tqdm
+
+        from peghole_mjx.training.lock import RunLock
+
+        self.out.mkdir(parents=True, exist_ok=True)
+        with RunLock(self.out):
+            found = checkpoints.newest_valid(self.ckpt_dir, self._load) if resume else None
+            if not resume:
+                if (self.out / "run.json").exists():
+                    raise UserInputError(
+                        f"{self.out} already holds a training run: use --resume or a new --out"
+                    )
+                meta = {
+                    "config": self.cfg.as_dict(),
+                    "seeds": self.seeds,
+                    "network": self.train.network,
+                    **provenance(),
+                }
+                fileio.write_text(self.out / "run.json", json.dumps(meta, indent=2) + "\n")
+            flags = np.asarray(self.train.learn_flags())
+            per_call = self.train.steps_per_call
+            bar = tqdm(
+                total=len(flags) * per_call,
+                unit="step",
+                unit_scale=True,
+                desc=f"SAC {self.cfg.env} x {self.seeds} seeds",
+                file=sys.stderr,
+                disable=not self.progress,
+                dynamic_ncols=True,
+            )
+            if found is not None:
+                path, (carry, step) = found
+                rows = self._rows(upto=step)
+                print(f"resumed from {path} at {step} env steps", file=sys.stderr)
+            else:
+                carry, step, rows = self._init(self.keys), 0, []
+            self._write_rows(rows)
+            bar.update(step)
+            chunk: list[tuple[bool, dict]] = []
+            for i in range(step // per_call, len(flags)):
+                carry, hist = self._call(carry, jnp.asarray(flags[i]))
+                step += per_call
+                chunk.append((bool(flags[i]), jax.device_get(hist)))
+                bar.update(per_call)
+                learned = i + 1 - self.train.prefill_calls
+                if learned > 0 and (learned % self.chunk_calls == 0 or i + 1 == len(flags)):
+                    rows += self._chunk_rows(chunk, step)
+                    chunk = []
+                    self._write_rows(rows)
+                    self._save(carry, step)
+            bar.close()
+            return self.finish(carry, step)
+
+    def finish(self, carry, step: int) -> dict[str, Any]:
+        """Each seed's final policy, evaluated on the same episodes; seeds.json; curves."""
+        from peghole_mjx.envs.rollout import rollout
+        from peghole_mjx.policies import make_policy_fn
+
+        policy_fn = make_policy_fn(self.train.network, deterministic=True)
+        host = jax.device_get(carry)
+        per_seed = []
+        for k in range(self.seeds):
+            self._save_policy(self.out / f"seed_{k}" / "final_policy", host, k, step)
+            params = _seed_slice(self.train.policy_params(host), k)
+            res = rollout(
+                self.env,
+                policy_fn,
+                self.cfg.num_eval_envs,
+                seed=self.cfg.seed + EVAL_SEED_OFFSET,
+                progress=False,
+                params=params,
+                gamma=self.cfg.discounting,
+            )
+            per_seed.append({"seed": self.cfg.seed + k, **res.summary().as_dict()})
+        across = {}
+        for s in EVAL_STATS:
+            vals = [float(r[s]) for r in per_seed if s in r]
+            if vals and s != "episodes":
+                finite = [v for v in vals if math.isfinite(v)]
+                across[s] = {
+                    "mean": float(np.mean(finite)) if finite else None,
+                    "ci95_t": t_interval(vals),
+                }
+        summary = {
+            "env": self.cfg.env,
+            "compliance_strategy": bool(self.cfg.compliance_strategy),
+            "profile": self.cfg.profile,
+            "seeds": [self.cfg.seed + k for k in range(self.seeds)],
+            "env_steps": step,
+            "eval_episodes_per_seed": self.cfg.num_eval_envs,
+            "eval_seed": self.cfg.seed + EVAL_SEED_OFFSET,
+            "final_eval": per_seed,
+            "final_eval_over_seeds": across,
+            **provenance(),
+        }
+        fileio.write_text(self.out / "seeds.json", json.dumps(summary, indent=2) + "\n")
+        try:
+            from peghole_mjx.training.plots import plot_seed_bands
+
+            plot_seed_bands([self.out], self.out / "curves.png")
+        except Exception as exc:  # a plot must never lose a finished run
+            print(f"warning: curves not plotted: {exc}", file=sys.stderr)
+        return summary
+
+
+def _seed_slice(tree, k: int):
+    """Seed ``k``'s part of a tree stacked over seeds."""
+    return jax.tree.map(lambda x: np.asarray(x[k]), tree)
+
+
+def _fmt(v):
+    return f"{v:.6g}" if isinstance(v, float) else v

@@ -1,0 +1,189 @@
+"""``make_train(env, cfg) -> train(key)`` and the multi-seed driver (``peghole train --seeds``).
+
+One tiny config; the vmapped two-seed run is compiled once (module fixture) and reused."""
+
+from __future__ import annotations
+
+import json
+import shutil
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+import pytest
+
+from peghole_mjx.training.config import load_train_config
+
+TINY = {
+    "num_envs": 4,
+    "steps_per_call": 5,
+    "eval_every": 20,
+    "num_eval_envs": 4,
+    "batch_size": 32,
+    "grad_updates_per_step": 2,
+    "min_replay_size": 20,
+    "max_replay_size": 2000,
+    "num_timesteps": 80,
+    "env.episode_length": 25,
+}
+
+
+def tiny_config():
+    return load_train_config("RectExtract", "quick", TINY, compliance_strategy=True)
+
+
+def _leaves(tree):
+    return [np.asarray(x) for x in jax.tree.leaves(tree)]
+
+
+@pytest.fixture(scope="module")
+def seeds_run(tmp_path_factory):
+    from peghole_mjx.training.seeds import SeedsRun
+
+    out = tmp_path_factory.mktemp("seeds") / "run"
+    run = SeedsRun(tiny_config(), 2, out, progress=False)
+    summary = run.run()
+    return run, summary
+
+
+def test_the_pure_train_counts_steps_like_a_training_run():
+    from peghole_mjx.envs import load
+    from peghole_mjx.training.functional import make_train
+
+    cfg = tiny_config()
+    train = make_train(load(cfg.env, config_overrides=cfg.env_overrides), cfg)  # not compiled
+    per_call = cfg.num_envs * cfg.steps_per_call
+    assert train.steps_per_call == per_call == 20
+    assert train.prefill_calls == 1  # 20 rows >= min_replay_size
+    assert train.learn_calls == 3  # 20 + 3 x 20 = num_timesteps
+
+
+def test_train_of_key_is_pure_and_vmaps_over_seeds(seeds_run):
+    """``jax.vmap(train)`` traces as one function of the keys (no compile here: the driver's
+    pieces below run the same ``train.call``): a carry like the driver's and one history
+    row per call and seed."""
+    run, _ = seeds_run
+    out = jax.eval_shape(jax.vmap(run.train), run.keys)
+    t = run.train
+    assert out.history["loss/critic"].shape == (2, t.prefill_calls + t.learn_calls)
+    want = jax.eval_shape(run._init, run.keys)
+    assert jax.tree.structure(out.carry) == jax.tree.structure(want)
+    assert [x.shape for x in jax.tree.leaves(out.carry)] == [x.shape for x in jax.tree.leaves(want)]
+
+
+def test_each_seed_of_a_call_is_its_own_run(seeds_run):
+    """Seed 0 rerun beside another key for seed 1 ends bit-identical to the driver's seed 0
+    (the seeds never mix); the two seeds differ; every learning call made its gradient
+    updates and the prefill call none."""
+    from peghole_mjx.policies import load_policy
+
+    run, _ = seeds_run
+    carry = run._init(run.keys.at[1].set(jax.random.PRNGKey(99)))
+    losses = []
+    for learn in np.asarray(run.train.learn_flags()):
+        carry, hist = run._call(carry, jnp.asarray(learn))
+        losses.append(np.asarray(hist["loss/critic"]))
+    saved = [load_policy(run.out / f"seed_{k}" / "final_policy").params for k in range(2)]
+    mine = jax.tree.map(lambda x: x[0], run.train.policy_params(carry))
+    for a, b in zip(_leaves(mine), _leaves(saved[0]), strict=True):
+        np.testing.assert_array_equal(a, b)
+    gap = max(
+        float(np.abs(a - b).max())
+        for a, b in zip(_leaves(saved[0]), _leaves(saved[1]), strict=True)
+    )
+    assert gap > 1e-3
+    cfg, t = run.cfg, run.train
+    want = t.learn_calls * cfg.steps_per_call * cfg.grad_updates_per_step
+    assert np.asarray(carry.ts.gradient_steps).tolist() == [want, want]
+    assert (losses[0] == 0).all() and all((x != 0).all() for x in losses[1:])
+
+
+def test_seeds_run_writes_per_seed_policies_history_and_intervals(seeds_run):
+    from peghole_mjx.policies import load_policy
+
+    run, summary = seeds_run
+    assert summary["seeds"] == [0, 1]
+    assert [r["seed"] for r in summary["final_eval"]] == [0, 1]
+    assert all(r["episodes"] == TINY["num_eval_envs"] for r in summary["final_eval"])
+    over = summary["final_eval_over_seeds"]["mean_return"]
+    vals = [r["mean_return"] for r in summary["final_eval"]]
+    assert over["mean"] == pytest.approx(np.mean(vals))
+    lo, hi = over["ci95_t"]
+    assert lo <= over["mean"] <= hi
+    rows = run._rows()
+    assert [(int(r["seed"]), int(r["step"])) for r in rows] == [
+        (s, st) for st in (40, 60, 80) for s in (0, 1)
+    ]
+    for k in range(2):
+        bundle = load_policy(run.out / f"seed_{k}" / "final_policy")
+        assert bundle.meta["train_config"]["seed"] == k
+        assert bundle.env_overrides == run.cfg.env_overrides
+    assert (run.out / "curves.png").stat().st_size > 0
+    assert json.loads((run.out / "seeds.json").read_text())["env_steps"] == 80
+
+
+def test_seeds_run_resumes_bit_for_bit(seeds_run, tmp_path):
+    """A copy of the run without its newest checkpoint (an interruption in the last chunk)
+    resumes from the one before and ends with exactly the same policies and history."""
+    from peghole_mjx.policies import load_policy
+    from peghole_mjx.training import checkpoints
+    from peghole_mjx.training.seeds import SeedsRun
+
+    run, _ = seeds_run
+    copy = tmp_path / "run"
+    shutil.copytree(run.out, copy, ignore=shutil.ignore_patterns("run.lock"))
+    newest = checkpoints.checkpoint_dirs(copy / "checkpoints")[-1]
+    shutil.rmtree(newest)
+    shutil.rmtree(copy / "seed_0")
+    resumed = SeedsRun.resume(copy, progress=False)
+    resumed._init, resumed._call = run._init, run._call  # the same compiled functions
+    resumed.run(resume=True)
+    for k in range(2):
+        a = load_policy(run.out / f"seed_{k}" / "final_policy").params
+        b = load_policy(copy / f"seed_{k}" / "final_policy").params
+        for x, y in zip(_leaves(a), _leaves(b), strict=True):
+            np.testing.assert_array_equal(x, y)
+    assert (copy / "history.csv").read_text() == (run.out / "history.csv").read_text()
+
+
+def test_seeds_must_be_a_positive_whole_number(tmp_path):
+    from peghole_mjx.errors import UserInputError
+    from peghole_mjx.training.seeds import SeedsRun
+
+    with pytest.raises(UserInputError, match="--seeds"):
+        SeedsRun(tiny_config(), 0, tmp_path / "r", progress=False)
+
+
+def test_t_interval_matches_the_textbook_value():
+    from peghole_mjx.training.seeds import t_interval
+
+    lo, hi = t_interval([1.0, 2.0, 3.0])  # mean 2, s 1, t(0.975, 2) = 4.3027
+    assert (lo, hi) == pytest.approx((2 - 4.3027 / 3**0.5, 2 + 4.3027 / 3**0.5), abs=1e-3)
+    assert t_interval([1.0]) is None
+    assert jnp.isfinite(jnp.asarray(lo))
+
+
+@pytest.mark.parametrize(
+    ("extra", "message"),
+    [
+        (["--seeds", "0"], "--seeds must be a whole number >= 1"),
+        (["--seeds", "2", "--distributed"], "--seeds takes neither --distributed"),
+        (["--seeds", "2", "--stop-at-success", "0.9"], "--seeds takes neither"),
+    ],
+)
+def test_cli_seeds_bad_input_is_one_line(tmp_path, capsys, extra, message):
+    from peghole_mjx.cli import main
+
+    rc = main(["train", "--env", "RectExtract", "--quick", "--out", str(tmp_path / "r"), *extra])
+    err = capsys.readouterr().err.strip().splitlines()
+    assert rc == 2 and len(err) == 1 and message in err[0]
+    assert not (tmp_path / "r" / "run.json").exists()
+
+
+def test_cli_resume_of_a_seeds_run_takes_its_own_config(seeds_run, capsys):
+    from peghole_mjx.cli import main
+
+    run, _ = seeds_run
+    rc = main(["train", "--resume", str(run.out), "--set", "num_envs=8"])
+    err = capsys.readouterr().err.strip()
+    assert rc == 2 and "--resume takes the run's own config" in err
