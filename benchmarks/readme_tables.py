@@ -434,7 +434,11 @@ def _batch_flag(ev: dict) -> str:
 def pretrained() -> str:
     """The committed pretrained policies' evaluations (``evaluation.json`` beside each)."""
     lines = []
-    for name, sub in (("rect", "rect_extract"), ("dual", "dual_extract")):
+    for name, sub in (
+        ("rect", "rect_extract"),
+        ("rect_hard", "rect_extract_hard"),
+        ("dual", "dual_extract"),
+    ):
         path = POLICIES / sub / "evaluation.json"
         if not path.exists():
             lines += [f"`{name}`: pending (no committed policy yet).", ""]
@@ -443,7 +447,7 @@ def pretrained() -> str:
         pol = json.loads((POLICIES / sub / "policy.json").read_text())
         th = ev["thesis"]
         prov = pol.get("provenance", {})
-        rect = name == "rect"
+        rect = name.startswith("rect")
         none = "no thesis result (R6: the dual RL study was not possible in PyBullet)"
         lines += [
             f"`{name}` ({ev['env']}, {ev['preset']}, compliance strategy "
@@ -476,7 +480,25 @@ def pretrained() -> str:
             f"{-th['force_reduction_pct']:+.1f} %; target: at least 29.6 % lower).",
             "",
         ]
+        lines += _both_succeed(name)
     return "\n".join(lines).rstrip()
+
+
+def _both_succeed(name: str) -> list[str]:
+    """The reduction over the episodes both succeed in, where a paired analysis is committed
+    (``benchmarks/results/<name>_cpu-2core/paired*.json``)."""
+    lines = []
+    for path in sorted(RESULTS.glob(f"{name}_cpu-2core/paired*.json")):
+        both = json.loads(path.read_text()).get("both_succeed")
+        if both:
+            lo, hi = both["bootstrap"]["reduction_pct_95"]
+            lines += [
+                f"Over the {both['episodes']} episodes both succeed in: "
+                f"{-both['reduction_pct']:+.1f} % [{-hi:+.1f}, {-lo:+.1f}] (paired bootstrap "
+                f"95 %; [`{path.relative_to(ROOT)}`]({path.relative_to(ROOT)})).",
+                "",
+            ]
+    return lines
 
 
 def force_sources() -> str:

@@ -15,6 +15,15 @@ Usage::
     peghole train --env RectExtract --compliance-strategy on  --profile cpu --out runs/rect_cs
     peghole train --env RectExtract --compliance-strategy off --profile cpu --out runs/rect_nocs
     python -m benchmarks.rl_vs_rlcs --cs runs/rect_cs --no-cs runs/rect_nocs
+
+With multi-seed runs (``peghole train ... --seeds N``, ``history.csv`` + ``seeds.json``) the
+result holds every seed's training statistics and final evaluation, the means over seeds with
+95 % Student-t intervals, and verdicts from intervals: C4.1 (RL + CS lower and steadier F_z
+over training: the 95 % Welch interval of RL minus RL + CS above zero for the per-seed mean
+and for the per-seed standard deviation of the training episodes' F_z) and C4.2 (the mean
+|F_xy| per episode falls during training: per seed, first chunk minus last chunk, its 95 %
+t-interval above zero); the plot has a band per arm
+(:func:`peghole_mjx.training.plots.plot_seed_bands`).
 """
 
 from __future__ import annotations
@@ -80,6 +89,181 @@ def run_record(run: Path) -> dict:
     }
 
 
+#: file-name stem of each env
+SHORT = {
+    "RectExtract": "rect",
+    "DualExtract": "dual",
+    "RectExtractHard": "rect_hard",
+    "DualExtractHard": "dual_hard",
+}
+
+
+def is_seeds_run(run: Path) -> bool:
+    return (Path(run) / "history.csv").exists()
+
+
+def seeds_record(run: Path) -> dict:
+    """Per-seed training statistics and final evaluations of a ``--seeds`` run."""
+    import csv
+
+    from peghole_mjx.training.seeds import t_interval
+
+    run = Path(run)
+    try:
+        summary = json.loads((run / "seeds.json").read_text())
+        with (run / "history.csv").open() as f:
+            rows = list(csv.DictReader(f))
+    except FileNotFoundError as exc:
+        raise UserInputError(f"{run}: not a finished multi-seed run ({exc.filename})") from None
+    per_seed = []
+    for ev in summary["final_eval"]:
+        mine = [r for r in rows if int(r["seed"]) == ev["seed"]]
+        fz = np.array([_float(r.get("train/mean_fz_N")) for r in mine])
+        fxy = np.array([_float(r.get("train/mean_fxy_N")) for r in mine])
+        fz, fxy = fz[np.isfinite(fz)], fxy[np.isfinite(fxy)]
+        per_seed.append(
+            {
+                "seed": ev["seed"],
+                "train_mean_fz_N": float(fz.mean()) if len(fz) else float("nan"),
+                "train_std_fz_N": float(fz.std()) if len(fz) else float("nan"),
+                "train_mean_fxy_N": float(fxy.mean()) if len(fxy) else float("nan"),
+                "train_fxy_first_minus_last_N": float(fxy[0] - fxy[-1])
+                if len(fxy) > 1
+                else float("nan"),
+                "train_curve": [
+                    {"step": int(r["step"]), **{k: _float(r.get(f"train/{k}")) for k in EVAL_KEYS}}
+                    for r in mine
+                ],
+                "final_eval": {k: ev.get(k) for k in (*EVAL_KEYS, "episodes", "jammed")},
+            }
+        )
+
+    def over(key, src=None):
+        vals = [float((s[src] if src else s)[key]) for s in per_seed]
+        finite = [v for v in vals if np.isfinite(v)]
+        return {
+            "mean": float(np.mean(finite)) if finite else float("nan"),
+            "ci95_t": t_interval(vals),
+        }
+
+    return {
+        "run": str(run),
+        "compliance_strategy": bool(summary["compliance_strategy"]),
+        "env": summary["env"],
+        "profile": summary["profile"],
+        "seeds": summary["seeds"],
+        "env_steps": summary["env_steps"],
+        "eval_episodes_per_seed": summary["eval_episodes_per_seed"],
+        "per_seed": per_seed,
+        "over_seeds": {
+            "train_mean_fz_N": over("train_mean_fz_N"),
+            "train_std_fz_N": over("train_std_fz_N"),
+            "train_mean_fxy_N": over("train_mean_fxy_N"),
+            "train_fxy_first_minus_last_N": over("train_fxy_first_minus_last_N"),
+            **{f"final_{k}": over(k, "final_eval") for k in ("success_rate", "mean_fz_N")},
+            "final_mean_fxy_N": over("mean_fxy_N", "final_eval"),
+        },
+    }
+
+
+def welch_interval(a: list[float], b: list[float], level: float = 0.95) -> list[float] | None:
+    """The ``level`` Welch interval of mean(a) - mean(b) (None with fewer than 2 each)."""
+    from scipy import stats
+
+    a = np.asarray([x for x in a if np.isfinite(x)], float)
+    b = np.asarray([x for x in b if np.isfinite(x)], float)
+    if len(a) < 2 or len(b) < 2:
+        return None
+    va, vb = a.var(ddof=1) / len(a), b.var(ddof=1) / len(b)
+    se = np.sqrt(va + vb)
+    if se == 0:
+        return [float(a.mean() - b.mean())] * 2
+    dof = (va + vb) ** 2 / (va**2 / (len(a) - 1) + vb**2 / (len(b) - 1))
+    half = stats.t.ppf(0.5 + level / 2, dof) * se
+    d = a.mean() - b.mean()
+    return [float(d - half), float(d + half)]
+
+
+def _above_zero(ci: list[float] | None) -> bool:
+    return bool(ci is not None and ci[0] > 0)
+
+
+def seeds_verdicts(cs: dict, rl: dict) -> dict:
+    """C4.1 and C4.2 from the per-seed statistics of the two arms."""
+
+    def col(rec, key):
+        return [s[key] for s in rec["per_seed"]]
+
+    lower = welch_interval(col(rl, "train_mean_fz_N"), col(cs, "train_mean_fz_N"))
+    steadier = welch_interval(col(rl, "train_std_fz_N"), col(cs, "train_std_fz_N"))
+    c41 = _above_zero(lower) and _above_zero(steadier)
+    fxy = {
+        arm: rec["over_seeds"]["train_fxy_first_minus_last_N"]
+        for arm, rec in (("rl_cs", cs), ("rl", rl))
+    }
+    return {
+        "c4_1": {
+            "claim": "RL + CS gives lower, steadier F_z over training than RL without it (Fig 4.5)",
+            "rl_minus_cs_train_mean_fz_N_ci95": lower,
+            "rl_minus_cs_train_std_fz_N_ci95": steadier,
+            "verdict": "confirmed" if c41 else "not confirmed",
+        },
+        "c4_2": {
+            "claim": "the mean |F_xy| per episode falls during training (Fig 4.6)",
+            "first_minus_last_chunk_fxy_N": fxy,
+            "verdict": {
+                arm: "confirmed" if _above_zero(v["ci95_t"]) else "not confirmed"
+                for arm, v in fxy.items()
+            },
+        },
+    }
+
+
+def main_seeds(args) -> int:
+    """The comparison of two ``--seeds`` runs (one per arm)."""
+    try:
+        cs, rl = seeds_record(args.cs), seeds_record(args.no_cs)
+    except UserInputError as e:
+        raise SystemExit(str(e)) from None
+    if not cs["compliance_strategy"] or rl["compliance_strategy"]:
+        raise SystemExit("--cs needs a run with the CS on, --no-cs one with it off")
+    if cs["env"] != rl["env"]:
+        raise SystemExit(f"the runs train different envs: {cs['env']} vs {rl['env']}")
+    label = device_label(None if args.device in (None, "cpu") else args.device)
+    tag = f"_{args.tag}" if args.tag else ""
+    stem = args.results / f"rl_vs_rlcs_{SHORT[cs['env']]}{tag}_{label}"
+    result = {
+        "benchmark": "rl_vs_rlcs",
+        "env": cs["env"],
+        "device": label,
+        "date": utc_now(),
+        "versions": versions_dict(("mujoco", "mjx", "jax")),
+        "note": args.note,
+        "rl_cs": cs,
+        "rl": rl,
+        **seeds_verdicts(cs, rl),
+    }
+    stem.parent.mkdir(parents=True, exist_ok=True)
+    stem.with_suffix(".json").write_text(json.dumps(result, indent=2) + "\n")
+    from peghole_mjx.training.plots import plot_seed_bands
+
+    plot_seed_bands(
+        [args.cs, args.no_cs],
+        stem.with_suffix(".png"),
+        title=f"{cs['env']}: RL vs RL + CS, {len(cs['seeds'])} seeds, 95 % bands ({label})",
+    )
+    print(
+        json.dumps(
+            {
+                "c4_1": result["c4_1"]["verdict"],
+                "c4_2": result["c4_2"]["verdict"],
+                "out": str(stem.with_suffix(".json")),
+            }
+        )
+    )
+    return 0
+
+
 def main(argv: list[str] | None = None) -> int:
     p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     p.add_argument("--cs", type=Path, required=True, help="run trained with the CS on")
@@ -89,6 +273,8 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--tag", default="", help="file-name tag of a variant, e.g. 'slow'")
     p.add_argument("--results", type=Path, default=RESULTS, help="output folder")
     args = p.parse_args(argv)
+    if is_seeds_run(args.cs) or is_seeds_run(args.no_cs):
+        return main_seeds(args)
 
     try:
         cs, nocs = run_record(args.cs), run_record(args.no_cs)
@@ -101,7 +287,7 @@ def main(argv: list[str] | None = None) -> int:
     lower = cs["train_mean_fz_N"] < nocs["train_mean_fz_N"]
     steadier = cs["train_std_fz_N"] < nocs["train_std_fz_N"]
     label = device_label(None if args.device in (None, "cpu") else args.device)
-    short = {"RectExtract": "rect", "DualExtract": "dual"}[cs["env"]]
+    short = SHORT[cs["env"]]
     tag = f"_{args.tag}" if args.tag else ""
     stem = args.results / f"rl_vs_rlcs_{short}{tag}_{label}"
     result = {

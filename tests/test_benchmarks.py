@@ -370,6 +370,53 @@ def test_rl_vs_rlcs_verdict_and_bad_input(tmp_path):
         rl_vs_rlcs.main(swapped)
 
 
+def _fake_seeds_run(path, cs: bool, fz: dict[int, list[float]], fxy: dict[int, list[float]]):
+    """A ``--seeds`` run directory (seeds.json, history.csv) as rl_vs_rlcs.py reads it."""
+    path.mkdir()
+    evals = [
+        {"seed": s, "success_rate": 1.0, "mean_fz_N": 1.0, "mean_fxy_N": 1.0, "episodes": 8}
+        for s in fz
+    ]
+    summary = {"env": "RectExtractHard", "compliance_strategy": cs, "profile": "cpu"}
+    summary.update(seeds=list(fz), env_steps=300, eval_episodes_per_seed=8, final_eval=evals)
+    (path / "seeds.json").write_text(json.dumps(summary))
+    cfg = {"env": "RectExtractHard", "env_overrides": {"compliance_strategy": cs}}
+    (path / "run.json").write_text(json.dumps({"config": cfg, "seeds": len(fz)}))
+    rows = ["seed,step,train/mean_fz_N,train/mean_fxy_N"]
+    for s in fz:
+        for i, (a, b) in enumerate(zip(fz[s], fxy[s], strict=True)):
+            rows.append(f"{s},{100 * (i + 1)},{a},{b}")
+    (path / "history.csv").write_text("\n".join(rows) + "\n")
+
+
+def test_rl_vs_rlcs_over_seeds_gives_verdicts_from_intervals(tmp_path):
+    """Three seeds per arm: RL + CS clearly lower and steadier (C4.1 confirmed); |F_xy| falls
+    in every RL + CS seed (C4.2 confirmed there) but not consistently in RL."""
+    cs_fz = {0: [4.0, 4.1, 3.9], 1: [4.2, 4.0, 4.1], 2: [3.9, 4.0, 4.0]}
+    rl_fz = {0: [6.0, 9.0, 3.0], 1: [7.0, 10.0, 2.0], 2: [5.0, 9.5, 3.5]}
+    cs_fxy = {0: [3.0, 2.0, 1.0], 1: [3.1, 2.0, 1.2], 2: [2.9, 2.1, 1.1]}
+    rl_fxy = {0: [1.0, 2.0, 3.0], 1: [3.0, 2.0, 1.0], 2: [2.0, 2.0, 2.0]}
+    _fake_seeds_run(tmp_path / "cs", True, cs_fz, cs_fxy)
+    _fake_seeds_run(tmp_path / "rl", False, rl_fz, rl_fxy)
+    out = tmp_path / "out"
+    args = ["--cs", str(tmp_path / "cs"), "--no-cs", str(tmp_path / "rl"), "--results", str(out)]
+    assert rl_vs_rlcs.main([*args, "--tag", "t"]) == 0
+    (res,) = [json.loads(p.read_text()) for p in out.glob("rl_vs_rlcs_rect_hard_t_*.json")]
+    assert res["c4_1"]["verdict"] == "confirmed"
+    assert res["c4_2"]["verdict"] == {"rl_cs": "confirmed", "rl": "not confirmed"}
+    over = res["rl_cs"]["over_seeds"]["train_mean_fz_N"]
+    assert over["mean"] == pytest.approx(np.mean([np.mean(v) for v in cs_fz.values()]))
+    assert list(out.glob("*.png"))
+    # Welch's interval against scipy's own (equal_var=False) t statistic
+    from scipy import stats
+
+    a, b = [1.0, 2.0, 3.0, 4.0], [2.0, 2.5, 5.0]
+    lo, hi = rl_vs_rlcs.welch_interval(a, b)
+    t = stats.ttest_ind(a, b, equal_var=False)
+    ci = t.confidence_interval(0.95)
+    assert (lo, hi) == pytest.approx((ci.low, ci.high))
+
+
 def test_committed_dual_per_episode_file_matches_the_published_evaluation():
     """The per-episode CSV behind the README's held-out and bootstrap figures is the published
     dual evaluation's episodes, and its committed analysis is reproduced from it."""
