@@ -210,6 +210,7 @@ def _scene(env) -> dict:
 #: entries used when the env is built: overridden value (built envs, no compilation)
 SCENE = {
     "preset": "rect-3",
+    "geometry": {"peg_w_mm": 59.8, "peg_v_mm": 39.8},
     "representation": "box",
     "contact_cap": 3,
     "sim_dt": 0.004,

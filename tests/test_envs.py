@@ -298,7 +298,7 @@ def test_random_policy_rarely_extracts_the_rect_peg(rect):
 
 
 @pytest.mark.slow
-def test_cli_rollout_scripted_rect_32_episodes():
+def test_cli_rollout_scripted_rect_8_episodes():
     res = subprocess.run(
         [
             sys.executable,
@@ -311,7 +311,7 @@ def test_cli_rollout_scripted_rect_32_episodes():
             "--policy",
             "scripted",
             "--episodes",
-            "32",
+            "8",
             "--json",
         ],
         capture_output=True,
@@ -330,7 +330,7 @@ def test_cli_rollout_scripted_rect_32_episodes():
         "nan_worlds",
     ):
         assert key in out
-    assert out["episodes"] == 32 and out["nan_worlds"] == 0
+    assert out["episodes"] == 8 and out["nan_worlds"] == 0
     assert out["success_rate"] >= 0.9
     assert out["physics_steps_per_s"] > 0 and out["compile_s"] > 0
 

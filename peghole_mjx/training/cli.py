@@ -26,10 +26,11 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     t = sub.add_parser(
         "train",
         help="train a SAC policy (Brax) on an MJX env",
-        description="Brax SAC on RectExtract or DualExtract with evaluation, metrics.csv, "
-        "TensorBoard logs and a checkpoint at every evaluation; writes learning curves, a "
-        "rollout GIF and summary.json at the end. Hyperparameters: train/configs/<ENV>.json "
-        "(profiles full | cpu | quick). Uses all local GPUs (pmap).",
+        description="Brax SAC on an MJX env (RectExtract, DualExtract, their Hard variants) "
+        "with evaluation, metrics.csv, TensorBoard logs and a checkpoint at every "
+        "evaluation; writes learning curves, a rollout GIF and summary.json at the end. "
+        "Hyperparameters: train/configs/<ENV>.json (profiles full | cpu | quick). Uses all "
+        "local GPUs (pmap).",
     )
     t.add_argument("--env", choices=ALL_ENVS, help="required unless --resume")
     t.add_argument(
