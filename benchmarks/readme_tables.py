@@ -535,6 +535,9 @@ def rl_vs_rlcs() -> str:
     for path in paths:
         d = json.loads(path.read_text())
         a, b = d["rl_cs"], d["rl"]
+        if "per_seed" in a:
+            lines += _rl_vs_rlcs_seeds(d, path)
+            continue
         lines += [
             f"{d['env']} on {d['device']} ({d['date'][:10]}), profile `{a['profile']}`, seed "
             f"{a['seed']}; from [`{path.relative_to(ROOT)}`]({path.relative_to(ROOT)}) and "
@@ -561,6 +564,49 @@ def rl_vs_rlcs() -> str:
             "",
         ]
     return "\n".join(lines).rstrip()
+
+
+def _mean_ci(v: dict, fmt: str = ".2f") -> str:
+    ci = v.get("ci95_t")
+    return f"{v['mean']:{fmt}}" + (f" [{ci[0]:{fmt}}, {ci[1]:{fmt}}]" if ci else "")
+
+
+def _rl_vs_rlcs_seeds(d: dict, path: Path) -> list[str]:
+    """The multi-seed comparison: means over seeds with 95 % t-intervals, and the verdicts."""
+    a = d["rl_cs"]
+    lines = [
+        f"{d['env']} on {d['device']} ({d['date'][:10]}), profile `{a['profile']}`, seeds "
+        f"{a['seeds']} per arm, {a['env_steps']} env steps each; from "
+        f"[`{path.relative_to(ROOT)}`]({path.relative_to(ROOT)}) and its `.png` (bands: 95 % "
+        f"over seeds). {d['note']}".rstrip(),
+        "",
+        "| arm | training: mean F_z N | training: std of F_z N | training: mean F_xy N "
+        "| training: F_xy first - last chunk N | final eval success | final eval F_z N |",
+        "|---|---|---|---|---|---|---|",
+    ]
+    for label, r in (("RL + CS", d["rl_cs"]), ("RL", d["rl"])):
+        o = r["over_seeds"]
+        lines.append(
+            f"| {label} | {_mean_ci(o['train_mean_fz_N'])} | {_mean_ci(o['train_std_fz_N'])} "
+            f"| {_mean_ci(o['train_mean_fxy_N'])} "
+            f"| {_mean_ci(o['train_fxy_first_minus_last_N'])} "
+            f"| {_mean_ci(o['final_success_rate'], '.3f')} | {_mean_ci(o['final_mean_fz_N'])} |"
+        )
+    c1, c2 = d["c4_1"], d["c4_2"]
+
+    def ci(v):
+        return "n/a" if v is None else f"[{v[0]:.2f}, {v[1]:.2f}]"
+
+    lines += [
+        "",
+        f"C4.1 ({c1['claim']}): RL minus RL + CS, mean F_z "
+        f"{ci(c1['rl_minus_cs_train_mean_fz_N_ci95'])} N, its std "
+        f"{ci(c1['rl_minus_cs_train_std_fz_N_ci95'])} N (95 % Welch): **{c1['verdict']}**. "
+        f"C4.2 ({c2['claim']}): RL + CS **{c2['verdict']['rl_cs']}**, RL "
+        f"**{c2['verdict']['rl']}**.",
+        "",
+    ]
+    return lines
 
 
 def cost() -> str:
