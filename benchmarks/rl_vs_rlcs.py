@@ -219,16 +219,16 @@ def seeds_verdicts(cs: dict, rl: dict) -> dict:
     }
 
 
-def main_seeds(args) -> int:
-    """The comparison of two ``--seeds`` runs (one per arm)."""
-    try:
-        cs, rl = seeds_record(args.cs), seeds_record(args.no_cs)
-    except UserInputError as e:
-        raise SystemExit(str(e)) from None
+def _check_arms(cs: dict, rl: dict) -> None:
     if not cs["compliance_strategy"] or rl["compliance_strategy"]:
         raise SystemExit("--cs needs a run with the CS on, --no-cs one with it off")
     if cs["env"] != rl["env"]:
         raise SystemExit(f"the runs train different envs: {cs['env']} vs {rl['env']}")
+
+
+def _write(args, cs: dict, rl: dict, extra: dict) -> tuple[Path, dict, str]:
+    """Write the result JSON (common header, both arms, ``extra``); its stem, the result and
+    the device label."""
     label = device_label(None if args.device in (None, "cpu") else args.device)
     tag = f"_{args.tag}" if args.tag else ""
     stem = args.results / f"rl_vs_rlcs_{SHORT[cs['env']]}{tag}_{label}"
@@ -241,10 +241,21 @@ def main_seeds(args) -> int:
         "note": args.note,
         "rl_cs": cs,
         "rl": rl,
-        **seeds_verdicts(cs, rl),
+        **extra,
     }
     stem.parent.mkdir(parents=True, exist_ok=True)
     stem.with_suffix(".json").write_text(json.dumps(result, indent=2) + "\n")
+    return stem, result, label
+
+
+def main_seeds(args) -> int:
+    """The comparison of two ``--seeds`` runs (one per arm)."""
+    try:
+        cs, rl = seeds_record(args.cs), seeds_record(args.no_cs)
+    except UserInputError as e:
+        raise SystemExit(str(e)) from None
+    _check_arms(cs, rl)
+    stem, result, label = _write(args, cs, rl, seeds_verdicts(cs, rl))
     from peghole_mjx.training.plots import plot_seed_bands
 
     plot_seed_bands(
@@ -280,25 +291,10 @@ def main(argv: list[str] | None = None) -> int:
         cs, nocs = run_record(args.cs), run_record(args.no_cs)
     except UserInputError as e:
         raise SystemExit(str(e)) from None
-    if not cs["compliance_strategy"] or nocs["compliance_strategy"]:
-        raise SystemExit("--cs needs a run with the CS on, --no-cs one with it off")
-    if cs["env"] != nocs["env"]:
-        raise SystemExit(f"the runs train different envs: {cs['env']} vs {nocs['env']}")
+    _check_arms(cs, nocs)
     lower = cs["train_mean_fz_N"] < nocs["train_mean_fz_N"]
     steadier = cs["train_std_fz_N"] < nocs["train_std_fz_N"]
-    label = device_label(None if args.device in (None, "cpu") else args.device)
-    short = SHORT[cs["env"]]
-    tag = f"_{args.tag}" if args.tag else ""
-    stem = args.results / f"rl_vs_rlcs_{short}{tag}_{label}"
-    result = {
-        "benchmark": "rl_vs_rlcs",
-        "env": cs["env"],
-        "device": label,
-        "date": utc_now(),
-        "versions": versions_dict(("mujoco", "mjx", "jax")),
-        "note": args.note,
-        "rl_cs": cs,
-        "rl": nocs,
+    extra = {
         "force_reduction_train_pct": 100.0 * (1 - cs["train_mean_fz_N"] / nocs["train_mean_fz_N"]),
         "c4_1": {
             "claim": "RL + CS gives lower, steadier F_z over training than RL without it (Fig 4.5)",
@@ -307,8 +303,7 @@ def main(argv: list[str] | None = None) -> int:
             "verdict": "confirmed" if lower and steadier else "not confirmed",
         },
     }
-    stem.parent.mkdir(parents=True, exist_ok=True)
-    stem.with_suffix(".json").write_text(json.dumps(result, indent=2) + "\n")
+    stem, result, label = _write(args, cs, nocs, extra)
 
     from peghole_mjx.training.plots import plot_curves
 
