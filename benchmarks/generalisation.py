@@ -184,12 +184,12 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--no-progress", action="store_true")
     args = ap.parse_args(argv)
 
-    from peghole_mjx.envs import get_default_config
     from peghole_mjx.envs.config import apply_overrides, env_spec
     from peghole_mjx.policies import PRETRAINED, load_policy
+    from peghole_mjx.training.evaluate import requested_config
 
     bundle = load_policy(args.policy)
-    trained = apply_overrides(get_default_config(bundle.env_name), bundle.env_overrides)
+    trained = requested_config(bundle)
     kind = get_preset(trained.preset).kind
     label = args.policy if args.policy in PRETRAINED else Path(args.policy).name
     parts = args.parts or Path("runs") / f"generalisation_{label}"

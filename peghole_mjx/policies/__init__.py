@@ -84,7 +84,7 @@ class PolicyBundle:
     def check_env(self, env) -> None:
         """Refuse an env whose name or observation/action sizes differ from the policy's."""
         net = self.meta["network"]
-        name = getattr(env, "env_name", type(env).__name__)  # the registry name
+        name = env.env_name  # the registry name (RectExtractHard is a RectExtract class)
         if name != self.env_name:
             raise UserInputError(f"{self.path}: a policy for {self.env_name}, not for {name}")
         have = (env.observation_size, env.action_size)

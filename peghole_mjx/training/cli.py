@@ -288,14 +288,17 @@ def cmd_evaluate(args: argparse.Namespace) -> int:
     baselines: dict = {}
     results = []
     for checkpoint in args.checkpoint:
+        policy = checkpoint
         if args.env:
             from peghole_mjx.policies import load_policy
 
-            have = load_policy(checkpoint).env_name
-            if have != args.env:
-                raise UserInputError(f"{checkpoint}: a policy for {have}, not for {args.env}")
+            policy = load_policy(checkpoint)  # loaded once: evaluate takes the bundle
+            if policy.env_name != args.env:
+                raise UserInputError(
+                    f"{checkpoint}: a policy for {policy.env_name}, not for {args.env}"
+                )
         res = evaluate(
-            checkpoint,
+            policy,
             args.episodes,
             seed=args.seed,
             progress=not args.json,

@@ -132,16 +132,14 @@ def config_differences(bundle: PolicyBundle, config) -> dict[str, list]:
     """``{dotted key: [trained value, requested value]}`` for every entry of the env config
     ``config`` that differs from the policy's training env config (its ``env_overrides`` on
     the env's defaults)."""
-    from peghole_mjx.envs import get_default_config
-    from peghole_mjx.envs.config import apply_overrides
-
-    trained = apply_overrides(get_default_config(bundle.env_name), bundle.env_overrides)
+    trained = requested_config(bundle, None)
     a, b = _flat(json.loads(trained.to_json())), _flat(json.loads(config.to_json()))
     return {k: [a.get(k), b.get(k)] for k in sorted(a.keys() | b.keys()) if a.get(k) != b.get(k)}
 
 
-def requested_config(bundle: PolicyBundle, env_overrides: dict | None):
-    """The env config of ``bundle``'s training env with ``env_overrides`` (not built)."""
+def requested_config(bundle: PolicyBundle, env_overrides: dict | None = None):
+    """The env config of ``bundle``'s training env with ``env_overrides`` (not built; None:
+    the training env's config)."""
     from peghole_mjx.envs import get_default_config
     from peghole_mjx.envs.config import apply_overrides
 

@@ -173,14 +173,7 @@ class TrainingRun:
         return carry, sched
 
     def _policy_meta(self, step: int) -> dict[str, Any]:
-        return {
-            "env": self.cfg.env,
-            "env_overrides": self.cfg.env_overrides,
-            "network": self.trainer.network,
-            "train_config": self.cfg.as_dict(),
-            "env_steps": step,
-            "provenance": provenance(),
-        }
+        return policy_meta(self.cfg, self.trainer.network, step)
 
     # ------------------------------------------------------------------ evaluation
     def evaluate(self, carry, episodes: int, seed: int) -> dict[str, float]:
@@ -416,6 +409,18 @@ class TrainingRun:
 
 
 # ---------------------------------------------------------------------- helpers
+def policy_meta(cfg: TrainConfig, network: dict[str, Any], step: int) -> dict[str, Any]:
+    """``policy.json`` of a policy trained with ``cfg`` for ``step`` env steps."""
+    return {
+        "env": cfg.env,
+        "env_overrides": cfg.env_overrides,
+        "network": network,
+        "train_config": cfg.as_dict(),
+        "env_steps": step,
+        "provenance": provenance(),
+    }
+
+
 def _tensorboard(path: Path):
     try:
         from tensorboardX import SummaryWriter

@@ -24,6 +24,7 @@ bit-identical whatever the other seeds of the call (tested).
 from __future__ import annotations
 
 import csv
+import dataclasses
 import json
 import math
 import sys
@@ -114,18 +115,11 @@ class SeedsRun:
 
     def _save_policy(self, path: Path, carry, k: int, step: int, atomic: bool = True) -> None:
         from peghole_mjx.policies import save_policy
+        from peghole_mjx.training.run import policy_meta
 
         params = _seed_slice(self.train.policy_params(carry), k)
-        cfg = {**self.cfg.as_dict(), "seed": self.cfg.seed + k}
-        meta = {
-            "env": self.cfg.env,
-            "env_overrides": self.cfg.env_overrides,
-            "network": self.train.network,
-            "train_config": cfg,
-            "env_steps": step,
-            "provenance": provenance(),
-        }
-        save_policy(path, params, meta, atomic=atomic)
+        cfg = dataclasses.replace(self.cfg, seed=self.cfg.seed + k)
+        save_policy(path, params, policy_meta(cfg, self.train.network, step), atomic=atomic)
 
     # ------------------------------------------------------------------ history
     def _rows(self, upto: int | None = None) -> list[dict[str, str]]:
@@ -137,19 +131,17 @@ class SeedsRun:
         return [r for r in rows if upto is None or int(r["step"]) <= upto]
 
     def _write_rows(self, rows: list[dict[str, Any]]) -> None:
-        def write(fh) -> None:
+        with fileio.atomic_open(self.out / "history.csv", "w") as fh:
             w = csv.DictWriter(fh, fieldnames=HISTORY_COLUMNS, extrasaction="ignore")
             w.writeheader()
             w.writerows(rows)
-
-        with fileio.atomic_open(self.out / "history.csv", "w") as fh:
-            write(fh)
 
     def _chunk_rows(self, calls: list[tuple[bool, dict]], step: int) -> list[dict[str, Any]]:
         """One row per seed: the training episodes that ended in ``calls`` (``(learn,
         history)`` pairs; the prefill calls are in the first chunk) and the learning calls'
         mean losses."""
         rows = []
+        calls = jax.device_get(calls)  # one copy per chunk, not one per call
         learning = [h for learn, h in calls if learn]
         calls = [h for _, h in calls]
         for k in range(self.seeds):
@@ -205,7 +197,7 @@ class SeedsRun:
             for i in range(step // per_call, len(flags)):
                 carry, hist = self._call(carry, jnp.asarray(flags[i]))
                 step += per_call
-                chunk.append((bool(flags[i]), jax.device_get(hist)))
+                chunk.append((bool(flags[i]), hist))
                 bar.update(per_call)
                 learned = i + 1 - self.train.prefill_calls
                 if learned > 0 and (learned % self.chunk_calls == 0 or i + 1 == len(flags)):
