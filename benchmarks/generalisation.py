@@ -171,7 +171,11 @@ def _shown(path: Path) -> str:
 
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawTextHelpFormatter)
-    ap.add_argument("--policy", default="rect", help="pretrained name (rect, dual) or a folder")
+    ap.add_argument(
+        "--policy",
+        default="rect",
+        help="pretrained name (rect, dual, rect_hard, dual_hard) or a folder",
+    )
     ap.add_argument("--episodes", type=int, default=64, help="episodes per cell")
     ap.add_argument("--seed", type=int, default=0)
     ap.add_argument("--batch", type=int, help="worlds at once (default: all episodes)")

@@ -438,6 +438,7 @@ def pretrained() -> str:
         ("rect", "rect_extract"),
         ("rect_hard", "rect_extract_hard"),
         ("dual", "dual_extract"),
+        ("dual_hard", "dual_extract_hard"),
     ):
         path = POLICIES / sub / "evaluation.json"
         if not path.exists():
@@ -485,17 +486,21 @@ def pretrained() -> str:
 
 
 def _both_succeed(name: str) -> list[str]:
-    """The reduction over the episodes both succeed in, where a paired analysis is committed
-    (``benchmarks/results/<name>_cpu-2core/paired*.json``)."""
+    """The paired reductions over all episodes and over the episodes both succeed in, where a
+    paired analysis is committed (``benchmarks/results/<name>_cpu-2core/paired*.json``)."""
     lines = []
     for path in sorted(RESULTS.glob(f"{name}_cpu-2core/paired*.json")):
-        both = json.loads(path.read_text()).get("both_succeed")
+        paired = json.loads(path.read_text())
+        both = paired.get("both_succeed")
         if both:
+            lo_all, hi_all = paired["bootstrap"]["reduction_pct_95"]
             lo, hi = both["bootstrap"]["reduction_pct_95"]
             lines += [
-                f"Over the {both['episodes']} episodes both succeed in: "
-                f"{-both['reduction_pct']:+.1f} % [{-hi:+.1f}, {-lo:+.1f}] (paired bootstrap "
-                f"95 %; [`{path.relative_to(ROOT)}`]({path.relative_to(ROOT)})).",
+                f"Paired bootstrap 95 % intervals ([`{path.relative_to(ROOT)}`]"
+                f"({path.relative_to(ROOT)})): over all {paired['episodes']} episodes "
+                f"{-paired['reduction_pct']:+.1f} % [{-hi_all:+.1f}, {-lo_all:+.1f}]; over the "
+                f"{both['episodes']} episodes both succeed in "
+                f"{-both['reduction_pct']:+.1f} % [{-hi:+.1f}, {-lo:+.1f}].",
                 "",
             ]
     return lines

@@ -3,7 +3,7 @@
     python train/publish_policy.py RUN_DIR NAME [--checkpoint best|final|STEP] [--episodes 256]
                                                 [--screen 256] [--batch 256 --parts DIR]
 
-(NAME: rect, dual, rect_hard) copies the chosen policy into its ``PRETRAINED`` folder
+(NAME: rect, dual, rect_hard, dual_hard) copies the chosen policy into its ``PRETRAINED`` folder
 (``peghole_mjx/policies/*``) with the run's ``metrics.csv``, ``curves.png`` and
 ``summary.json``, then evaluates it against the scripted baseline on fresh episodes
 (``evaluation.json``: the same as ``peghole evaluate <name> --episodes N --json``).

@@ -41,7 +41,8 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     r.add_argument(
         "--policy",
         default="scripted",
-        help="scripted | random | a policy: pretrained name (rect, dual), policy or run directory",
+        help="scripted | random | a policy: pretrained name (rect, dual, rect_hard, dual_hard), "
+        "policy or run directory",
     )
     r.add_argument("--episodes", type=arg("episodes"), default=64)
     r.add_argument("--seed", type=arg("seed"), default=0)

@@ -22,7 +22,7 @@ rewrites a folder as 2: ``python train/upgrade_policy.py DIR``); any other versi
 in one line.
 
 Pretrained policies (``PRETRAINED``) are addressed by name (``rect``, ``dual``,
-``rect_hard``) or by path.
+``rect_hard``, ``dual_hard``) or by path.
 """
 
 from __future__ import annotations
@@ -48,6 +48,7 @@ PRETRAINED = {
     "rect": POLICY_DIR / "rect_extract",
     "dual": POLICY_DIR / "dual_extract",
     "rect_hard": POLICY_DIR / "rect_extract_hard",  # RectExtractHard (docs/training.md)
+    "dual_hard": POLICY_DIR / "dual_extract_hard",  # DualExtractHard (docs/training.md)
 }
 #: the format ``save_policy`` writes
 FORMAT_VERSION = 2

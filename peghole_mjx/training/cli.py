@@ -89,8 +89,8 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
         "method) on the same randomised episodes and reports success_rate, mean_time_s, "
         "mean_fz_N, peak_fz_N, mean_fxy_N for each, and the force reduction beside the "
         "thesis's R3-R5. CHECKPOINT: a policy directory, a training run directory, or a "
-        "pretrained name (rect, dual); several are evaluated on the same episodes (the "
-        "baseline run once per env), and --json / --out then give a list.",
+        "pretrained name (rect, dual, rect_hard, dual_hard); several are evaluated on the same "
+        "episodes (the baseline run once per env), and --json / --out then give a list.",
     )
     e.add_argument("checkpoint", nargs="+")
     e.add_argument(
