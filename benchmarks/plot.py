@@ -100,6 +100,8 @@ def plot_time_to_success(out_dir: Path, results: Path = RESULTS) -> Path:
 
     bars = []
     for p in sorted(results.glob("seed_stack_*.json")):
+        if "Extract" in p.stem:  # another env's (e.g. seed_stack_RectExtractHard_cpu-2core)
+            continue
         r = time_to_success(p)
         if r:
             bars.append((f"seed stack\n(PyBullet + SB3)\n{p.stem.split('_', 2)[-1]}", r))

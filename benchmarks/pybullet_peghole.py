@@ -1,10 +1,13 @@
 """The thesis's simulator rebuilt as a baseline: RectExtract in PyBullet (seed stack).
 
-Same task as :class:`peghole_mjx.envs.RectExtract`, with every number taken from the project
-(one source of truth): the rect-2 peg-hole (:func:`peghole_mjx.geometry.specs.get_preset`),
+Same task as the registered env it is built for (``RectExtract``, default, or
+``RectExtractHard``), with every number taken from the project (one source of truth): the
+env's default config (``peghole_mjx.envs.get_default_config(env)``: its preset, rect-2 or
+rect-3, through :func:`peghole_mjx.geometry.specs.get_preset`),
 its convex pieces (:func:`peghole_mjx.geometry.parts.hole_parts` / ``peg_parts``: four wall
 boxes and a floor box, the peg one box), the env config (action scales, stiffness, jamming,
-success margin, episode length, randomisation: ``peghole_mjx.envs.get_default_config``), the
+success margin, episode length, randomisation, e.g. RectExtractHard's +-4 deg commanded tilt
+error), the
 limits and gains (:mod:`peghole_mjx.control.limits`), the reward terms and weights
 (:func:`peghole_mjx.envs.reward.reward_terms`, Table 4.1).
 
@@ -32,6 +35,12 @@ the URDF's (the MJCF iiwa has its own inertial values and a 0.1 kg m^2 armature 
 PyBullet cannot model), contact is Bullet's (soft-constraint LCP, 50 solver iterations,
 contact margins; MuJoCo's soft-contact parameters have no PyBullet equivalent), and the
 friction coefficient is set on the hole with 1.0 on the peg (Bullet multiplies the two).
+
+Every entry of the env config is accounted for (:func:`check_config`): read by the sim
+(:data:`HONOURED`), a MuJoCo model setting with no Bullet counterpart (:data:`ENGINE_ONLY`:
+Bullet's own contact and solver stand in), inert with the compliance strategy off
+(:data:`INACTIVE`), or honoured at one value only (:data:`REQUIRED`); any other value or entry
+is refused with one line rather than ignored.
 """
 
 from __future__ import annotations
@@ -52,6 +61,7 @@ from peghole_mjx.control.reference import (
 from peghole_mjx.control.reference import rot_z as rotz
 from peghole_mjx.envs import get_default_config
 from peghole_mjx.envs.reward import REWARD_WEIGHTS, reward_terms
+from peghole_mjx.errors import UserInputError
 from peghole_mjx.geometry.mjcf import ACTUATORS, ROBOT_XML, TOOL_DOWN_MAT
 from peghole_mjx.geometry.parts import hole_parts, peg_parts
 from peghole_mjx.geometry.specs import MM, RectSpec, get_preset
@@ -62,6 +72,125 @@ FT_MASS_KG = 0.35
 HOLE_XY_M = (0.6, 0.0)  # as the MJCF scene
 N_ARM = 7
 FT_LINK, PEG_LINK = 7, 8  # link indices of the added fixed links
+
+#: the registered envs this sim rebuilds (the rectangular peg-hole, compliance strategy off)
+PYBULLET_ENVS = ("RectExtract", "RectExtractHard")
+
+#: env config entries the sim reads (dotted names of the flattened config)
+HONOURED = frozenset(
+    {
+        "preset",
+        "ctrl_dt",
+        "sim_dt",
+        "episode_length",
+        "jam_force_N",
+        "jam_time_s",
+        "success_margin_mm",
+        "action.max_step_offset_mm",
+        "action.max_speed_m_s",
+        "action.max_force_step_N",
+        "action.max_ff_xy_N",
+        "limits.max_force_N",
+        "limits.max_torque_Nm",
+        "obs.force_scale_N",
+        "randomization.hole_xy_mm",
+        "randomization.hole_yaw_deg",
+        "randomization.lateral_error_mm",
+        "randomization.angular_error_deg",
+        "randomization.friction_scale",
+        "stiffness.k_xy_N_m",
+        "stiffness.k_z_N_m",
+        "stiffness.k_rot_Nm_rad",
+        "stiffness.damping_ratio",
+        "stiffness.compliance_centre_mm",
+        "stiffness.null_stiffness_Nm_rad",
+        "stiffness.null_damping_Nms_rad",
+    }
+    | {f"reward_config.{k}" for k in (*REWARD_WEIGHTS, "force_scale_N", "stiffness_scale_N_m")}
+    | {
+        f"reward_config.{k}"
+        for k in ("w_stf_rot", "rot_stiffness_scale_Nm_rad", "w_fz", "fz_scale_N")
+    }
+)
+#: MuJoCo/MJX model settings with no Bullet counterpart (Bullet's contact and solver instead)
+ENGINE_ONLY = frozenset(
+    {
+        "impl",
+        "naconmax",
+        "njmax",
+        "contact_cap",
+        "representation",
+        "contact.timeconst_s",
+        "contact.friction_timeconst_s",
+    }
+)
+#: entries that act only with the compliance strategy on (refused: see REQUIRED) or with an
+#: observation extra on
+INACTIVE = frozenset(
+    {
+        "compliance_rotation",
+        "stiffness.k_xy_min_N_m",
+        "stiffness.k_xy_max_N_m",
+        "stiffness.k_rot_min_Nm_rad",
+        "stiffness.k_rot_max_Nm_rad",
+        "obs.k_xy_scale_N_m",
+        "obs.k_rot_scale_Nm_rad",
+        "obs.torque_scale_Nm",
+    }
+)
+#: entries the sim honours at one value only: the 9-D observation, the 6-D action with the
+#: fixed stiffness (compliance strategy off), the preset's own geometry
+REQUIRED = {
+    "compliance_strategy": False,
+    "learn_compliance_centre": False,
+    "obs.prev_action": False,
+    "obs.stiffness": False,
+    "obs.torques": False,
+    "geometry": "",
+    "randomization.stiffness_N_m": (0.0, 0.0),
+}
+
+
+def _flatten(d: dict, prefix: str = "") -> dict:
+    out = {}
+    for k, v in d.items():
+        if isinstance(v, dict):
+            out.update(_flatten(v, f"{prefix}{k}."))
+        else:
+            out[f"{prefix}{k}"] = v
+    return out
+
+
+def check_config(config) -> None:
+    """Refuse (one line, :class:`UserInputError`) an env config entry the sim cannot honour.
+
+    Every entry must be read by the sim, be a MuJoCo-only setting, be inert with the
+    compliance strategy off, or hold the one value the sim models.
+    """
+    for key, value in sorted(_flatten(config.to_dict()).items()):
+        want = REQUIRED.get(key)
+        norm = tuple(value) if isinstance(value, list | tuple) else value
+        if key in REQUIRED and norm != want:
+            raise UserInputError(
+                f"the PyBullet seed stack cannot honour env config {key}={value!r} "
+                f"(it models {key}={want!r} only)"
+            )
+        if key not in HONOURED | ENGINE_ONLY | INACTIVE | set(REQUIRED):
+            raise UserInputError(
+                f"the PyBullet seed stack does not know env config entry {key!r} "
+                "(benchmarks/pybullet_peghole.py: HONOURED, ENGINE_ONLY, INACTIVE or REQUIRED)"
+            )
+
+
+def env_config(env: str):
+    """The registered env's default config, checked for the PyBullet sim (one line if not)."""
+    if env not in PYBULLET_ENVS:
+        raise UserInputError(
+            f"the PyBullet seed stack rebuilds {list(PYBULLET_ENVS)} only, not {env!r}"
+        )
+    config = get_default_config(env)
+    check_config(config)
+    return config
 
 
 def _ctrl_range() -> tuple[np.ndarray, np.ndarray]:
@@ -131,13 +260,18 @@ class StepResult:
 class PegHoleSim:
     """One PyBullet world (its own DIRECT client): reset, step, observation, reward."""
 
-    def __init__(self, preset: str = "rect-2", seed: int = 0, config=None):
+    def __init__(self, env: str = "RectExtract", seed: int = 0, config=None):
         import pybullet as p
 
         self.p = p
-        self.c = config or get_default_config("RectExtract")
+        self.env = env
+        if config is None:
+            config = env_config(env)
+        else:
+            check_config(config)
+        self.c = config
         self.rc = self.c.reward_config
-        self.spec = get_preset(preset)
+        self.spec = get_preset(self.c.preset)
         if not isinstance(self.spec, RectSpec):
             raise ValueError("the PyBullet baseline models the rectangular peg-hole only")
         self.rng = np.random.default_rng(seed)
@@ -185,6 +319,7 @@ class PegHoleSim:
         self.ctrl_lo, self.ctrl_hi = _ctrl_range()
         s = self.c.stiffness
         self.k_xy = float(s.k_xy_N_m)
+        self.k_rot = float(s.k_rot_Nm_rad)
         self.stiffness = np.array(
             [s.k_xy_N_m, s.k_xy_N_m, s.k_z_N_m, s.k_rot_Nm_rad, s.k_rot_Nm_rad, s.k_rot_Nm_rad]
         )
@@ -435,7 +570,16 @@ class PegHoleSim:
         step = info["step"] + 1
         timeout = step >= c.episode_length
         failure = (jammed or not finite or timeout) and not success
-        terms = reward_terms(dz_mm, fxy, self.k_xy, float(success), float(failure), self.rc)
+        terms = reward_terms(
+            dz_mm,
+            fxy,
+            self.k_xy,
+            float(success),
+            float(failure),
+            self.rc,
+            k_rot_Nm_rad=self.k_rot,
+            fz_N=float(abs(f[2])),
+        )
         terms = {k: float(v) for k, v in terms.items()}
         if not finite:
             terms["progress"] = 0.0
@@ -459,17 +603,17 @@ class PegHoleSim:
         )
 
 
-def make_gym_env(preset: str = "rect-2", seed: int = 0):
+def make_gym_env(env: str = "RectExtract", seed: int = 0):
     """A gymnasium ``Env`` around :class:`PegHoleSim` (import-time optional dependency)."""
     import gymnasium as gym
 
     class PyBulletRectExtract(gym.Env):
-        """RectExtract in PyBullet: 9-D observation, 6-D action in [-1, 1], eq 4.4 reward."""
+        """RectExtract(Hard) in PyBullet: 9-D observation, 6-D action in [-1, 1], eq 4.4 reward."""
 
         metadata = {"render_modes": []}  # noqa: RUF012
 
         def __init__(self):
-            self.sim = PegHoleSim(preset, seed=seed)
+            self.sim = PegHoleSim(env, seed=seed)
             self.observation_space = gym.spaces.Box(-np.inf, np.inf, (9,), np.float32)
             self.action_space = gym.spaces.Box(-1.0, 1.0, (6,), np.float32)
 
@@ -494,4 +638,12 @@ def make_gym_env(preset: str = "rect-2", seed: int = 0):
     return PyBulletRectExtract()
 
 
-__all__ = ["REWARD_WEIGHTS", "PegHoleSim", "make_gym_env", "make_urdf"]
+__all__ = [
+    "PYBULLET_ENVS",
+    "REWARD_WEIGHTS",
+    "PegHoleSim",
+    "check_config",
+    "env_config",
+    "make_gym_env",
+    "make_urdf",
+]

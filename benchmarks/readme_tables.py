@@ -216,12 +216,88 @@ def time_to_success() -> str:
         "|---|---|---|---|---|---|---|---|---|",
     ]
     for p in sorted(RESULTS.glob("seed_stack_*.json")):
-        lines.append(_tts_row(f"seed stack: PyBullet + SB3 SAC (`{p.name}`)", p))
+        if "Extract" not in p.stem:  # RectExtract's (the hard variant's rows follow)
+            lines.append(_tts_row(f"seed stack: PyBullet + SB3 SAC (`{p.name}`)", p))
     ours = sorted(RESULTS.glob(OURS_GLOB))
     for p in ours:
         lines.append(_tts_row(f"ours: MJX + Brax SAC (`{p.name}`)", p))
     if not ours:
         lines.append(_tts_row("ours: MJX + Brax SAC", RESULTS / "pending.json"))
+    for p in sorted(RESULTS.glob(f"seed_stack_{HARD_ENV}_*.json")):
+        lines.append(_tts_row(f"seed stack: PyBullet + SB3 SAC (`{p.name}`)", p))
+    for p in sorted(RESULTS.glob(f"train_{HARD_ENV}_*.json")):
+        lines.append(_tts_row(f"ours: MJX + Brax SAC (`{p.name}`)", p))
+    return "\n".join(lines)
+
+
+#: the hard variant of the seed-stack comparison (docs/benchmarks.md, "The hard rect variant")
+HARD_ENV = "RectExtractHard"
+
+
+def time_to_success_hard() -> str:
+    """The hard-rect comparison: threshold rule, each stack's time, the ratio per device.
+
+    The seed stack runs on the CPU only; ours' GPU ratio is "unmeasured" until a
+    ``train_RectExtractHard_gpu-*.json`` is committed.
+    """
+    from benchmarks.time_to_success import compare
+
+    seed_p = RESULTS / f"seed_stack_{HARD_ENV}_cpu-2core.json"
+    if not seed_p.exists():
+        return f"{HARD_ENV}: pending (no `{seed_p.name}`)."
+    seed = json.loads(seed_p.read_text())
+    out = []
+    ours_files = sorted(RESULTS.glob(f"train_{HARD_ENV}_*.json"))
+    for p in ours_files:
+        ours = json.loads(p.read_text())
+        c = compare(seed, ours)
+
+        def t(x):
+            return "not reached" if x is None else f"{x:.0f} s"
+
+        ratio = c["ratio_seed_over_ours"]
+        ratio_s = f"**{ratio:.2f}x**" if ratio is not None else "none"
+        out.append(
+            f"- {HARD_ENV}, seed stack on {seed['device']} vs ours on {ours['device']} "
+            f"(`{seed_p.name}`, `{p.name}`): threshold {c['rule']}; time to it: seed stack "
+            f"{t(c['seed_time_s'])}, ours {t(c['ours_time_s'])} of training clock; ratio "
+            f"seed stack / ours {ratio_s} ({c['verdict']}; best success in the budget: seed "
+            f"stack {c['seed_best_success']:.2f}, ours {c['ours_best_success']:.2f})."
+        )
+    if not ours_files:
+        out.append(f"- {HARD_ENV}, ours on the CPU: pending.")
+    if not any("_gpu-" in p.name for p in ours_files):
+        out.append(
+            f"- {HARD_ENV}, ours on a GPU: **unmeasured** (no `train_{HARD_ENV}_gpu-*.json`)."
+        )
+    return "\n".join(out)
+
+
+def seed_stack_dual_hull() -> str:
+    """The dual peg in PyBullet, one mesh (hull) vs convex pieces (seed_stack_dual_hull.json)."""
+    d = json.loads((RESULTS / "seed_stack_dual_hull.json").read_text())
+    names = {
+        "hull": "one mesh (PyBullet's hull, the seed stack)",
+        "compound": "compound of convex pieces (ours)",
+    }
+    lines = [
+        "| peg model | collision volume cm^3 | penetration at the start pose mm | contact normal "
+        "force, first step N | pushed off the start pose after the hold mm | placed inserted "
+        "| tip out of the hole at s | extracted from the inserted start |",
+        "|---|---|---|---|---|---|---|---|",
+    ]
+    for r in d["runs"]:
+        out = "-" if r["tip_out_at_s"] is None else f"{r['tip_out_at_s']:.2f}"
+        lines.append(
+            f"| {names[r['peg_model']]} | {r['peg_collision_volume_cm3']:.2f} | "
+            f"{r['start_penetration_mm']:.2f} | {r['first_step_normal_force_N']:.0f} | "
+            f"{r['displacement_after_hold_mm']:.2f} | {'yes' if r['placed_inserted'] else 'no'} "
+            f"| {out} | {'yes' if r['extracted'] else 'no'} |"
+        )
+    lines.append("")
+    lines.append(
+        f"{d['device']}; {d['date'][:10]}; hold {d['hold_s']:g} s; `{d['command'].strip()}`."
+    )
     return "\n".join(lines)
 
 
@@ -729,6 +805,9 @@ TABLES = {
     "roofline": roofline,
     "cost": cost,
     "time_to_success": time_to_success,
+    "time_to_success_hard": time_to_success_hard,
+    "time_to_success_ratio": time_to_success_hard,
+    "seed_stack_dual_hull": seed_stack_dual_hull,
     "pretrained": pretrained,
     "force_sources": force_sources,
     "rl_vs_rlcs": rl_vs_rlcs,
@@ -753,6 +832,9 @@ TABLE_FILES = {
     "roofline": "docs/benchmarks.md",
     "cost": "docs/benchmarks.md",
     "time_to_success": "docs/benchmarks.md",
+    "time_to_success_hard": "docs/benchmarks.md",
+    "time_to_success_ratio": "README.md",
+    "seed_stack_dual_hull": "docs/benchmarks.md",
 }
 assert set(TABLE_FILES) == set(TABLES)
 

@@ -1,12 +1,15 @@
 """The thesis's learning pipeline as a baseline: PyBullet RectExtract + Stable-Baselines3 SAC.
 
 One environment (``benchmarks/pybullet_peghole.py``: the same observation, action, reward,
-limits, randomisation and episode length as ``peghole_mjx.envs.RectExtract``, rect-2 peg-hole
-as boxes, the impedance law in joint-torque control), trained by SB3 SAC with the thesis's
-settings: ``MlpPolicy``, ``gamma 0.99``, ``ent_coef 0.2``, ``buffer_size 100_000``,
-``train_freq 50``; every other setting is SB3's default (``gradient_steps 1`` per
-``train_freq``, ``batch_size 256``, ``learning_rate 3e-4``, ``learning_starts 100``), each
-exposed as an option. Torch runs on one CPU thread (``--torch-threads``).
+limits, randomisation and episode length as the registered env ``--env``, ``RectExtract``
+(default, rect-2) or ``RectExtractHard`` (rect-3, +-4 deg commanded tilt error), its config
+taken from ``peghole_mjx.envs.get_default_config``; peg-hole as boxes, the impedance law in
+joint-torque control, compliance strategy off: 6-D action, fixed stiffness), trained by
+SB3 SAC with the thesis's settings: ``MlpPolicy``, ``gamma 0.99``, ``ent_coef 0.2``,
+``buffer_size 100_000``, ``train_freq 50``; every other setting is SB3's default
+(``gradient_steps 1`` per ``train_freq``, ``batch_size 256``, ``learning_rate 3e-4``,
+``learning_starts 100``), each exposed as an option. Torch runs on one CPU thread
+(``--torch-threads``).
 
 Mode: a fixed wall-clock budget (``--budget-s``). The clock counts training only (env steps
 + updates); every ``--eval-every-s`` of it, training pauses for ``--eval-episodes``
@@ -14,7 +17,8 @@ deterministic episodes, whose time is not counted. Reported: the success rate re
 evaluation, and the rolling rate of the last 20 training episodes) and the training wall clock
 at which an evaluation first reached ``--threshold`` (default 0.95), or null if never.
 The time to the threshold is known to the evaluation interval (15 s by default).
-Writes ``benchmarks/results/seed_stack_<device>.json`` (device, versions, date, note).
+Writes ``benchmarks/results/seed_stack_<device>.json`` for RectExtract and
+``seed_stack_<env>_<device>.json`` for another env (device, versions, date, note, load).
 
 Needs the ``bench`` extra: ``pip install torch==2.13.0`` (CPU wheel) then
 ``pip install -e '.[bench]'``. Run: ``python -m benchmarks.seed_stack --budget-s 600
@@ -129,8 +133,29 @@ def make_callback(args, eval_env, log):
     return Budget()
 
 
+#: the env whose results keep the original file names (committed before ``--env`` existed)
+DEFAULT_ENV = "RectExtract"
+
+
+def result_path(env: str, label: str) -> Path:
+    """``seed_stack_<label>.json`` for RectExtract, ``seed_stack_<env>_<label>.json`` else."""
+    return RESULTS / (
+        f"seed_stack_{label}.json" if env == DEFAULT_ENV else f"seed_stack_{env}_{label}.json"
+    )
+
+
+def task_line(env: str, config) -> str:
+    """One line naming the task from the env's config (preset, tilt error, episode)."""
+    r = config.randomization
+    return (
+        f"{env} ({config.preset}, commanded tilt error +-{r.angular_error_deg:g} deg, "
+        f"{config.episode_length * config.ctrl_dt:g} s limit), compliance strategy off"
+    )
+
+
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("--env", default=DEFAULT_ENV, help="RectExtract or RectExtractHard")
     ap.add_argument("--budget-s", type=float, default=600.0, help="training wall clock, s")
     ap.add_argument("--threshold", type=float, default=0.95, help="success rate to reach")
     ap.add_argument("--eval-every-s", type=float, default=15.0, help="training s between evals")
@@ -149,17 +174,25 @@ def main(argv: list[str] | None = None) -> int:
     )
     ap.add_argument("--seed", type=int, default=0)
     ap.add_argument("--note", default="")
-    ap.add_argument("--out", type=Path, default=RESULTS / f"seed_stack_{cpu_label()}.json")
+    ap.add_argument("--out", type=Path, default=None, help="default: result_path(env, device)")
     args = ap.parse_args(argv)
+    out = args.out or result_path(args.env, cpu_label())
+
+    from benchmarks.pybullet_peghole import env_config, make_gym_env
+    from peghole_mjx.errors import UserInputError
+
+    try:
+        config = env_config(args.env)
+    except UserInputError as exc:
+        print(f"seed_stack: error: {exc}", file=sys.stderr)
+        return 2
 
     import torch
     from stable_baselines3 import SAC
 
-    from benchmarks.pybullet_peghole import make_gym_env
-
     torch.set_num_threads(args.torch_threads)
-    env = make_gym_env(seed=args.seed)
-    eval_env = make_gym_env(seed=10_000 + args.seed)
+    env = make_gym_env(args.env, seed=args.seed)
+    eval_env = make_gym_env(args.env, seed=10_000 + args.seed)
     model = SAC(
         SAC_SETTINGS["policy"],
         env,
@@ -187,7 +220,9 @@ def main(argv: list[str] | None = None) -> int:
     final = log[-1]
     result = {
         "stack": "PyBullet + Stable-Baselines3 SAC (the thesis's pipeline, rebuilt)",
-        "task": "RectExtract (rect-2, 150 mm pull, 15 s limit)",
+        "env": args.env,
+        "task": task_line(args.env, config),
+        "env_config": config.to_dict(),
         "device": cpu_device(),
         "versions": versions_dict(),
         "date": utc_now(),
@@ -215,6 +250,7 @@ def main(argv: list[str] | None = None) -> int:
         "train_env_steps_per_s": round(model.num_timesteps / max(train_s, 1e-9), 1),
         "episodes": cb.episodes,
         "final_success_rate": final["eval"]["success_rate"],
+        "best_success_rate": max(pt["eval"]["success_rate"] for pt in log),
         "final_rolling_success_20": final["rolling_success_20"],
         "time_to_success_s": cb.time_to_threshold,
         "env_steps_to_success": cb.steps_to_threshold,
@@ -222,8 +258,8 @@ def main(argv: list[str] | None = None) -> int:
         "eval_episodes": args.eval_episodes,
         "curve": log,
     }
-    args.out.parent.mkdir(parents=True, exist_ok=True)
-    args.out.write_text(json.dumps(result, indent=2) + "\n")
+    out.parent.mkdir(parents=True, exist_ok=True)
+    out.write_text(json.dumps(result, indent=2, default=list) + "\n")
     reached = (
         f"reached at {cb.time_to_threshold} s"
         if cb.time_to_threshold is not None
@@ -232,7 +268,7 @@ def main(argv: list[str] | None = None) -> int:
     print(
         f"seed stack: {result['env_steps']} env steps in {result['train_wall_s']} s of training, "
         f"success {result['final_success_rate']:.2f} (threshold {args.threshold}: {reached}); "
-        f"wrote {args.out}"
+        f"wrote {out}"
     )
     env.close()
     eval_env.close()

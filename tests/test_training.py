@@ -408,3 +408,19 @@ def test_train_cli_refuses_to_overwrite_a_run(tmp_path):
     )
     assert res.returncode == 2
     assert "already holds a training run" in res.stderr
+
+
+def test_training_budget_stops_the_run_after_a_last_evaluation(tmp_path):
+    """``budget_train_s``: the run ends at the first train call past the budget, evaluated."""
+    import csv
+
+    from peghole_mjx.training.run import TrainingRun
+
+    cfg = tiny_config(num_timesteps=LEARN_STEPS)
+    run = TrainingRun(cfg, tmp_path / "run", progress=False, render=False, budget_train_s=0.0)
+    summary = run.run()
+    per_call = cfg.num_envs * cfg.steps_per_call
+    assert summary["env_steps"] == cfg.min_replay_size + per_call < cfg.num_timesteps
+    with (tmp_path / "run" / "metrics.csv").open() as f:
+        rows = list(csv.DictReader(f))
+    assert [int(r["step"]) for r in rows] == [0, summary["env_steps"]]  # the last evaluation

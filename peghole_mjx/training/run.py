@@ -75,12 +75,16 @@ class TrainingRun:
         progress: bool = True,
         render: bool = True,
         stop_at_success: float | None = None,
+        budget_train_s: float | None = None,
     ):
         from peghole_mjx.envs import load
 
         self.cfg, self.out, self.progress, self.render = cfg, Path(out), progress, render
         #: end the run at the first evaluation whose success rate reaches this (benchmarks)
         self.stop_at_success = stop_at_success
+        #: end the run, after a last evaluation, once the training clock (evaluations
+        #: excluded) reaches this many seconds (benchmarks with a wall-clock budget)
+        self.budget_train_s = budget_train_s
         self.carry = None
         self.env = load(cfg.env, config_overrides=cfg.env_overrides or None)
         self.trainer = SACTrainer(self.env, cfg)
@@ -329,7 +333,10 @@ class TrainingRun:
             bar.update(per_call)
             sps = (step - s_sps) / max(time.perf_counter() - t_sps, 1e-9)
             bar.set_postfix(sps=f"{sps:.0f}", **post, refresh=False)
-            if step >= n_eval * cfg.eval_every or step >= cfg.num_timesteps:
+            over_budget = (
+                self.budget_train_s is not None and clocks()["train_wall_s"] >= self.budget_train_s
+            )
+            if step >= n_eval * cfg.eval_every or step >= cfg.num_timesteps or over_budget:
                 ev = timed_eval(cfg.seed + 10_000 + n_eval)
                 n_eval = max(n_eval + 1, step // cfg.eval_every + 1)
                 row = {
@@ -354,6 +361,13 @@ class TrainingRun:
                 if self.stop_at_success is not None and ev["success_rate"] >= self.stop_at_success:
                     print(
                         f"eval success {ev['success_rate']:.2f} >= {self.stop_at_success}: "
+                        f"stopping at {step} env steps",
+                        file=sys.stderr,
+                    )
+                    break
+                if over_budget:
+                    print(
+                        f"training clock reached the {self.budget_train_s:g} s budget: "
                         f"stopping at {step} env steps",
                         file=sys.stderr,
                     )
