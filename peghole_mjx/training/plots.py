@@ -135,6 +135,12 @@ def plot_seed_bands(runs: list[Path], out: Path, title: str | None = None) -> Pa
                 mean.append(np.mean(vals) if vals else np.nan)
                 lo.append(ci[0] if ci else np.nan)
                 hi.append(ci[1] if ci else np.nan)
-            ax.plot(steps, mean, color=f"C{i}", lw=1.4, label=label)
-            ax.fill_between(steps, lo, hi, color=f"C{i}", alpha=0.25, lw=0)
+            # chunks in which no training episode ended are gaps: draw the others joined,
+            # with markers, so an isolated chunk stays visible
+            x, mean = np.asarray(steps), np.asarray(mean)
+            ok = np.isfinite(mean)
+            ax.plot(x[ok], mean[ok], color=f"C{i}", lw=1.4, marker="o", ms=3, label=label)
+            lo, hi = np.asarray(lo), np.asarray(hi)
+            band = np.isfinite(lo) & np.isfinite(hi)  # chunks with episodes of >= 2 seeds
+            ax.fill_between(x[band], lo[band], hi[band], color=f"C{i}", alpha=0.25, lw=0)
     return _finish(fig, axes, title or "SAC training episodes: mean over seeds, 95 % band", out)
