@@ -99,9 +99,9 @@ def plot_time_to_success(out_dir: Path, results: Path = RESULTS) -> Path:
     import matplotlib.pyplot as plt
 
     bars = []
-    for p in sorted(results.glob("seed_stack_*.json")):
-        if "Extract" in p.stem:  # another env's (e.g. seed_stack_RectExtractHard_cpu-2core)
-            continue
+    from benchmarks.seed_stack import result_files
+
+    for p in result_files(results=results):  # RectExtract's only
         r = time_to_success(p)
         if r:
             bars.append((f"seed stack\n(PyBullet + SB3)\n{p.stem.split('_', 2)[-1]}", r))

@@ -215,15 +215,16 @@ def time_to_success() -> str:
         "| time to threshold s | date | reproduce |",
         "|---|---|---|---|---|---|---|---|---|",
     ]
-    for p in sorted(RESULTS.glob("seed_stack_*.json")):
-        if "Extract" not in p.stem:  # RectExtract's (the hard variant's rows follow)
-            lines.append(_tts_row(f"seed stack: PyBullet + SB3 SAC (`{p.name}`)", p))
+    from benchmarks.seed_stack import result_files
+
+    for p in result_files():  # RectExtract's (the hard variant's rows follow)
+        lines.append(_tts_row(f"seed stack: PyBullet + SB3 SAC (`{p.name}`)", p))
     ours = sorted(RESULTS.glob(OURS_GLOB))
     for p in ours:
         lines.append(_tts_row(f"ours: MJX + Brax SAC (`{p.name}`)", p))
     if not ours:
         lines.append(_tts_row("ours: MJX + Brax SAC", RESULTS / "pending.json"))
-    for p in sorted(RESULTS.glob(f"seed_stack_{HARD_ENV}_*.json")):
+    for p in result_files(HARD_ENV):
         lines.append(_tts_row(f"seed stack: PyBullet + SB3 SAC (`{p.name}`)", p))
     for p in sorted(RESULTS.glob(f"train_{HARD_ENV}_*.json")):
         lines.append(_tts_row(f"ours: MJX + Brax SAC (`{p.name}`)", p))
@@ -240,9 +241,10 @@ def time_to_success_hard() -> str:
     The seed stack runs on the CPU only; ours' GPU ratio is "unmeasured" until a
     ``train_RectExtractHard_gpu-*.json`` is committed.
     """
+    from benchmarks.seed_stack import result_path
     from benchmarks.time_to_success import compare
 
-    seed_p = RESULTS / f"seed_stack_{HARD_ENV}_cpu-2core.json"
+    seed_p = result_path(HARD_ENV, "cpu-2core")
     if not seed_p.exists():
         return f"{HARD_ENV}: pending (no `{seed_p.name}`)."
     seed = json.loads(seed_p.read_text())

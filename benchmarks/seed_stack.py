@@ -144,6 +144,18 @@ def result_path(env: str, label: str) -> Path:
     )
 
 
+def result_files(env: str = DEFAULT_ENV, results: Path = RESULTS) -> list[Path]:
+    """The committed seed-stack training results for ``env`` (any device), read from each
+    file's own ``stack`` and ``env`` fields (files before ``--env`` existed are RectExtract's),
+    so other PyBullet results beside them (``seed_stack_dual_hull.json``) are never taken."""
+    out = []
+    for p in sorted(results.glob("seed_stack_*.json")):
+        d = json.loads(p.read_text())
+        if "stack" in d and d.get("env", DEFAULT_ENV) == env:
+            out.append(p)
+    return out
+
+
 def task_line(env: str, config) -> str:
     """One line naming the task from the env's config (preset, tilt error, episode)."""
     r = config.randomization

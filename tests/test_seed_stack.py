@@ -66,6 +66,26 @@ def test_result_names_keep_the_default_env_files():
     )
 
 
+def test_result_files_take_each_envs_training_results_only(tmp_path):
+    """Files are told apart by their own fields: a pre-``--env`` file is RectExtract's, and the
+    dual-hull result (no ``stack``) is never a training result."""
+    import json
+
+    files = {
+        "seed_stack_cpu-2core.json": {"stack": "sb3"},
+        "seed_stack_gpu-h100.json": {"stack": "sb3", "env": "RectExtract"},
+        "seed_stack_RectExtractHard_cpu-2core.json": {"stack": "sb3", "env": "RectExtractHard"},
+        "seed_stack_dual_hull.json": {"benchmark": "hull", "env": "DualExtract"},
+    }
+    for name, d in files.items():
+        (tmp_path / name).write_text(json.dumps(d))
+    names = [p.name for p in seed_stack.result_files(results=tmp_path)]
+    assert names == ["seed_stack_cpu-2core.json", "seed_stack_gpu-h100.json"]
+    hard = seed_stack.result_files("RectExtractHard", tmp_path)
+    assert [p.name for p in hard] == ["seed_stack_RectExtractHard_cpu-2core.json"]
+    assert seed_stack.result_files("DualExtract", tmp_path) == []
+
+
 # ----------------------------------------------------------------------------- PyBullet
 def test_unknown_env_is_one_clear_line(capsys):
     pytest.importorskip("pybullet")
