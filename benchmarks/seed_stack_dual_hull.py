@@ -38,7 +38,7 @@ import numpy as np
 from benchmarks.bench_common import RESULTS, cpu_device, load_average, utc_now, versions_dict
 from peghole_mjx.envs import get_default_config
 from peghole_mjx.geometry.mjcf import TOOL_DOWN_MAT
-from peghole_mjx.geometry.parts import ConvexPart, hole_parts, peg_parts, peg_tip_z_m
+from peghole_mjx.geometry.parts import hole_parts, peg_parts, peg_tip_z_m
 from peghole_mjx.geometry.specs import MM, DualSpec, get_preset
 
 HOLE_XY_M = (0.6, 0.0)  # as the MJCF scene (any place on the floor would do)
@@ -69,14 +69,6 @@ def _write_obj(path: Path, pieces: list[np.ndarray]) -> Path:
 def _xyzw(q_wxyz: np.ndarray) -> list[float]:
     w, x, y, z = (float(v) for v in q_wxyz)
     return [x, y, z, w]
-
-
-def _local_vertices(part: ConvexPart) -> np.ndarray:
-    """The piece's vertices in its own frame (box: its corners)."""
-    if part.kind == "mesh":
-        return np.asarray(part.vertices)
-    signs = np.array([[sx, sy, sz] for sx in (-1, 1) for sy in (-1, 1) for sz in (-1, 1)])
-    return signs * np.asarray(part.half_size)
 
 
 class DualWorld:
@@ -111,7 +103,7 @@ class DualWorld:
             else:
                 key = part.mesh or part.name
                 if key not in meshes:
-                    obj = _write_obj(tmp / f"hole_{i}.obj", [_local_vertices(part)])
+                    obj = _write_obj(tmp / f"hole_{i}.obj", [part.local_corners()])
                     meshes[key] = p.createCollisionShape(p.GEOM_MESH, fileName=str(obj), **kw)
                 shape = meshes[key]
             body = p.createMultiBody(
@@ -145,7 +137,7 @@ class DualWorld:
                 else:
                     types.append(p.GEOM_MESH)
                     halves.append([0.0, 0.0, 0.0])
-                    files.append(str(_write_obj(tmp / f"peg_{k}.obj", [_local_vertices(pc)])))
+                    files.append(str(_write_obj(tmp / f"peg_{k}.obj", [pc.local_corners()])))
                 poss.append([float(v) for v in pc.pos])
                 orns.append(_xyzw(pc.quat))
             shape = p.createCollisionShapeArray(

@@ -29,10 +29,9 @@ import sys
 from pathlib import Path
 
 from benchmarks.bench_common import RESULTS, device_label, load_average, utc_now
+from benchmarks.seed_stack import DEFAULT_ENV, task_line
 
 THRESHOLD = 0.95
-#: the env whose results keep the original file name (committed before ``--env`` existed)
-DEFAULT_ENV = "RectExtract"
 
 
 def result_path(env: str, label: str) -> Path:
@@ -110,9 +109,11 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--seed", type=int, default=0)
     ap.add_argument("--note", default="", help="added to the result's note (e.g. CPU load)")
     args = ap.parse_args(argv)
-    if args.env not in ("RectExtract", "RectExtractHard"):
+    from benchmarks.pybullet_peghole import PYBULLET_ENVS
+
+    if args.env not in PYBULLET_ENVS:  # the task must be one the seed stack rebuilds
         print(
-            f"time_to_success: error: the seed-stack task is RectExtract or RectExtractHard, "
+            f"time_to_success: error: the seed-stack task is one of {list(PYBULLET_ENVS)}, "
             f"not {args.env!r}",
             file=sys.stderr,
         )
@@ -152,7 +153,6 @@ def main(argv: list[str] | None = None) -> int:
         budget_train_s=args.budget_s,
     )
     summary = run.run(resume=False)
-    env_cfg = run.env.config
 
     with (out_dir / "metrics.csv").open() as f:
         rows = list(csv.DictReader(f))
@@ -189,9 +189,7 @@ def main(argv: list[str] | None = None) -> int:
     result = {
         "stack": "MJX + Brax SAC (peghole_mjx.training)",
         "env": args.env,
-        "task": f"{args.env} ({env_cfg.preset}, commanded tilt error "
-        f"+-{env_cfg.randomization.angular_error_deg:g} deg, "
-        f"{env_cfg.episode_length * env_cfg.ctrl_dt:g} s limit), compliance strategy off",
+        "task": task_line(args.env, run.env.config),
         "device": device,
         "versions": prov["versions"],
         "date": utc_now(),

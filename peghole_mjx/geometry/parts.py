@@ -180,19 +180,21 @@ class ConvexPart:
 
         return float(ConvexHull(self.vertices).volume)
 
+    def local_corners(self) -> np.ndarray:
+        """Vertices of the piece (capsule, cylinder: of its bounding box) in its own frame."""
+        if self.kind == "mesh":
+            return np.asarray(self.vertices)
+        signs = np.array([[sx, sy, sz] for sx in (-1, 1) for sy in (-1, 1) for sz in (-1, 1)])
+        if self.kind == "box":
+            half = np.asarray(self.half_size)
+        else:
+            r, h = self.half_size
+            half = np.array([r, r, h + (r if self.kind == "capsule" else 0.0)])
+        return signs * half
+
     def corners(self) -> np.ndarray:
         """Vertices of the piece (capsule, cylinder: of its bounding box) in the owner's frame."""
-        if self.kind == "mesh":
-            local = np.asarray(self.vertices)
-        else:
-            signs = np.array([[sx, sy, sz] for sx in (-1, 1) for sy in (-1, 1) for sz in (-1, 1)])
-            if self.kind == "box":
-                half = np.asarray(self.half_size)
-            else:
-                r, h = self.half_size
-                half = np.array([r, r, h + (r if self.kind == "capsule" else 0.0)])
-            local = signs * half
-        return self.pos + local @ _mat_from_quat(self.quat).T
+        return self.pos + self.local_corners() @ _mat_from_quat(self.quat).T
 
 
 def regular_polygon(
