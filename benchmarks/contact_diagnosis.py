@@ -31,7 +31,6 @@ import argparse
 import dataclasses
 import functools
 import json
-import math
 import sys
 import time
 from pathlib import Path
@@ -41,12 +40,10 @@ import numpy as np
 from tqdm import tqdm
 
 from benchmarks.bench_common import RESULTS
-from peghole_mjx.control.limits import GAINS, LIMITS
-from peghole_mjx.control.reference import impedance_torque, rot_from_rotvec
+from benchmarks.c_replica import pull_c
 from peghole_mjx.experiments import compliance as cx
 from peghole_mjx.experiments import contact_check as cc
-from peghole_mjx.geometry.mjcf import SimOptions, compile_scene
-from peghole_mjx.geometry.specs import PRESETS
+from peghole_mjx.geometry.mjcf import SimOptions
 from peghole_mjx.provenance import provenance
 
 #: name -> (step s, friction time constant s or None, representation, contact time constant)
@@ -66,70 +63,15 @@ VARIANTS = {
 def pull(
     preset: str, dt: float, tcf: float | None, rep: str, tc: float | None, speed: float = 0.02
 ) -> dict[str, np.ndarray]:
-    """The standard case in MuJoCo C; per physics step: tip depth, side forces, penetration,
+    """The standard case in MuJoCo C (:func:`benchmarks.c_replica.pull_c`, the law without
+    joint-damping cancellation); per physics step: tip depth, side forces, penetration,
     tangential and normal force sums."""
-    spec = dataclasses.replace(PRESETS[preset], friction=cc.STANDARD_MU)
     sim = dataclasses.replace(
         SimOptions(), timestep=dt, friction_timeconst=tcf, contact_timeconst=tc
     )
-    m = compile_scene(spec, sim=sim, representation=rep)
-    d = mujoco.MjData(m)
-    mujoco.mj_resetDataKeyframe(m, d, m.key("inserted").id)
-    mujoco.mj_forward(m, d)
-    joints = [m.joint(f"joint{i}") for i in range(1, 8)]
-    qadr = np.array([j.qposadr[0] for j in joints])
-    dadr = np.array([j.dofadr[0] for j in joints])
-    act = np.array([m.actuator(f"joint{i}_motor").id for i in range(1, 8)])
-    lo, hi = m.actuator_ctrlrange[act].T
-    peg = m.body("peg").id
-    case = cc.STANDARD_CASE
-    centre = m.site("peg_tip").pos.copy() - np.array([0.0, 0.0, 1.0]) * case["L_C"]
-    q0 = d.qpos[qadr].copy()
-    R0 = d.xmat[peg].reshape(3, 3).copy()
-    x0 = d.xpos[peg] + R0 @ centre
-    mouth = d.site("hole_mouth").xpos[2]
-    tip = m.site("peg_tip").id
-    k, kr = case["k_lat"], case["k_rot"]
-    stiff = np.array([k, k, GAINS.axial_stiffness_N_m, kr, kr, kr])
-    settle = round(0.3 / dt)
-    n = settle + math.ceil((mouth - d.site_xpos[tip][2] + 0.005) / (speed * dt))
-    dx_err, rot_err = case["delta0"], -case["beta0"]  # rest pose, thesis sign (see compliance)
-    jacp, jacr, M = np.zeros((3, m.nv)), np.zeros((3, m.nv)), np.zeros((m.nv, m.nv))
-    f6 = np.zeros(6)
-    out = np.zeros((n, 6))
-    z = 0.0
-    for t in range(n):
-        a = min(t / settle, 1.0)
-        vel = np.array([0.0, 0.0, speed if t >= settle else 0.0])
-        z += vel[2] * dt
-        pos = x0 + np.array([a * dx_err, 0.0, z])
-        Rc = rot_from_rotvec(np.array([0.0, a * rot_err, 0.0])) @ R0
-        R = d.xmat[peg].reshape(3, 3)
-        xc = d.xpos[peg] + R @ centre
-        mujoco.mj_jac(m, d, jacp, jacr, xc, peg)
-        mujoco.mj_fullM(m, d, M)
-        J = np.vstack([jacp, jacr])[:, dadr]
-        tau, _ = impedance_torque(
-            J, M[np.ix_(dadr, dadr)], d.qfrc_bias[dadr], d.qpos[qadr], d.qvel[dadr], xc, R,
-            pos, Rc, vel, stiff, GAINS.damping_ratio, np.zeros(6), q0,
-            (GAINS.null_stiffness_Nm_rad, GAINS.null_damping_Nms_rad), LIMITS.max_wrench, lo, hi,
-        )  # fmt: skip
-        d.ctrl[act] = tau
-        mujoco.mj_step(m, d)
-        fp = fm = pen = ft = fn = 0.0
-        for i in range(d.ncon):
-            c = d.contact[i]
-            mujoco.mj_contactForce(m, d, i, f6)
-            if f6[0] <= 0:
-                continue
-            pen = max(pen, -c.dist)
-            nx = c.frame[0] * (1.0 if m.geom_bodyid[c.geom1] == peg else -1.0)
-            fp += f6[0] * (nx > 0.3)
-            fm += f6[0] * (nx < -0.3)
-            ft += math.hypot(f6[1], f6[2])
-            fn += f6[0]
-        out[t] = (mouth - d.site_xpos[tip][2], fp, fm, pen, ft, fn)
-    return {"trace": out, "settle": settle, "dt": dt}
+    cfg = cx.ExperimentConfig(sim=sim, representation=rep, compensate_joint_damping=False)
+    trace, settle, dt = pull_c(preset, cc.STANDARD_MU, cc.STANDARD_CASE, speed, cfg)
+    return {"trace": trace[:, :6], "settle": settle, "dt": dt}
 
 
 def summarise(run: dict) -> dict:

@@ -104,6 +104,7 @@ def test_paired_bootstrap_interval_contains_the_estimate():
         (["--geometry", "round"], "rect or dual"),
         (["--geometry", "rect", "--mu", "nan"], "must be finite"),
         (["--geometry", "rect", "--k-rot", "abc"], "comma-separated numbers"),
+        (["--geometry", "rect", "--speed-mm-s", "0"], "--speed-mm-s must be > 0"),
     ],
 )
 def test_sweep_bad_input_is_one_line(args, message, capsys, tmp_path):
@@ -159,6 +160,19 @@ def test_tiny_sweep_resumes_from_its_parts(tiny_sweep, monkeypatch):
     other = dataclasses.replace(cfg, seed=1)
     with pytest.raises(AssertionError, match="recomputed"):
         sweep.run_sweep(other, out, progress=False)
+
+
+def test_widening_a_grid_reuses_the_slices_already_run(tiny_sweep):
+    cfg, out, _ = tiny_sweep
+    (preset,), (mu,) = cfg.grid.presets, cfg.grid.mu
+    wider = dataclasses.replace(cfg, grid=dataclasses.replace(cfg.grid, mu=(0.01, mu)))
+    key = sweep.group_key(wider, preset, mu)
+    assert key == sweep.group_key(cfg, preset, mu)
+    assert len(list((out / "parts").glob(f"{preset}_mu{mu:g}_{key}_*.npz"))) == 2
+    assert sweep.group_key(wider, preset, 0.01) != key
+    # a float64 sweep is another sweep; a float32 one keeps the keys of older folders
+    assert sweep.group_key(dataclasses.replace(cfg, x64=True), preset, mu) != key
+    assert "precision" not in cfg.settings()
 
 
 def test_contact_check_runs_one_world():

@@ -56,6 +56,18 @@ def add_parser(subparsers) -> None:
         default=True,
         help="fixed MJX elliptic-cone Newton Hessian (peghole_mjx/mjx_fixes.py; default on)",
     )
+    w.add_argument(
+        "--speed-mm-s",
+        type=float,
+        default=None,
+        help="pull speed, mm/s (default 20; the thesis does not state it, see "
+        "benchmarks/pull_speed.py)",
+    )
+    w.add_argument(
+        "--x64",
+        action="store_true",
+        help="run in float64 (float32 does not resolve pulls slower than a few mm/s)",
+    )
     w.add_argument("--out", required=True, type=Path, help="output folder (resumable)")
     w.set_defaults(func=run_sweep)
 
@@ -161,15 +173,21 @@ def run_sweep(args: argparse.Namespace) -> int:
 
     if args.representation is not None:
         resolve_representation(PRESETS[grid.presets[0]], args.representation, impl="jax")
+    if args.speed_mm_s is not None and not args.speed_mm_s > 0:
+        raise UserInputError(f"--speed-mm-s must be > 0, got {args.speed_mm_s}")
+    exp = ExperimentConfig(
+        representation=args.representation,
+        compensate_joint_damping=args.compensate_joint_damping,
+        fix_cone_hessian=args.fix_cone_hessian,
+    )
+    if args.speed_mm_s is not None:
+        exp = dataclasses.replace(exp, speed_m_s=args.speed_mm_s * 1e-3)
+    if args.x64:
+        import jax
+
+        jax.config.update("jax_enable_x64", True)
     cfg = sweep.SweepConfig(
-        grid=grid,
-        seed=args.seed,
-        batch_worlds=args.batch_worlds,
-        experiment=ExperimentConfig(
-            representation=args.representation,
-            compensate_joint_damping=args.compensate_joint_damping,
-            fix_cone_hessian=args.fix_cone_hessian,
-        ),
+        grid=grid, seed=args.seed, batch_worlds=args.batch_worlds, experiment=exp, x64=args.x64
     )
     result = sweep.run_sweep(cfg, args.out)
     for f in sweep.write_figures(result, args.out):

@@ -234,15 +234,29 @@ class SweepConfig:
     seed: int = 0
     batch_worlds: int = 96
     experiment: cx.ExperimentConfig = dataclasses.field(default_factory=cx.ExperimentConfig)
+    #: the sweep runs with ``jax_enable_x64`` (set by the caller before any JAX work)
+    x64: bool = False
 
     def settings(self) -> dict:
         """Everything that determines the results (the resume key)."""
-        return {
+        out = {
             "grid": dataclasses.asdict(self.grid),
             "seed": self.seed,
             "batch_worlds": self.batch_worlds,
             "experiment": cx.config_dict(self.experiment),
         }
+        if self.x64:  # float32 sweeps keep the keys they had before this option existed
+            out["precision"] = "float64"
+        return out
+
+
+def group_key(cfg: SweepConfig, preset: str, mu: float) -> str:
+    """Resume key of the slices of one (preset, mu) scene: the settings with the grid narrowed
+    to that preset and friction, so that widening a grid (another mu, another preset) reuses
+    the slices already run. For a one-preset, one-mu grid it is the key of the whole sweep."""
+    settings = cfg.settings()
+    settings["grid"] = {**settings["grid"], "presets": [preset], "mu": [mu]}
+    return _key(settings)
 
 
 def run_sweep(cfg: SweepConfig, out: Path, progress: bool = True) -> dict:
@@ -259,7 +273,6 @@ def run_sweep(cfg: SweepConfig, out: Path, progress: bool = True) -> dict:
         raise UserInputError(f"--out {out} exists and is not a folder")
     parts = out / "parts"
     parts.mkdir(parents=True, exist_ok=True)
-    key = _key(cfg.settings())
     cells = grid.cells()
     t0 = time.time()
     # group the cells by (preset, mu): one compiled scene each
@@ -272,6 +285,7 @@ def run_sweep(cfg: SweepConfig, out: Path, progress: bool = True) -> dict:
     )
     bar = tqdm(total=n_slices, desc=f"sweep {geometry}", disable=not progress)
     for (preset, mu), ix in groups.items():
+        key = group_key(cfg, preset, mu)
         tabs = [cell_table(cells[i], grid.repeats, cfg.seed) for i in ix]
         table = {k: np.concatenate([t[k] for t in tabs]) for k in cx.WORLD_KEYS}
         owner = np.repeat(np.arange(len(ix)), 3 * grid.repeats)
@@ -646,6 +660,12 @@ def write_figures(result: dict, out: Path) -> list[Path]:
         shown.append(next(c for c in cells if all(c[k] == v for k, v in best["cell"].items())))
     if stiff:
         shown.append(stiff[0])
+    # a grid with several friction values: the cell nearest R1 at each of the others too
+    for mu in sorted({c["mu"] for c in cells}):
+        if shown and mu != shown[0]["mu"]:
+            same = {k: shown[0][k] for k in ("preset", "k_rot_Nm_rad", "k_lat_N_m", "delta0_mm")}
+            same.update(beta0_deg=shown[0]["beta0_deg"], theta0_deg=shown[0]["theta0_deg"])
+            shown += [c for c in cells if c["mu"] == mu and all(c[k] == v for k, v in same.items())]
     if shown:
         fig, axes = plt.subplots(1, len(shown), figsize=(5.5 * len(shown), 4), squeeze=False)
         for ax, c in zip(axes[0], shown, strict=True):

@@ -1,0 +1,65 @@
+"""The MuJoCo C replica of the compliance experiment and the pull-speed check's bookkeeping."""
+
+import json
+
+import numpy as np
+import pytest
+
+from benchmarks import pull_speed as ps
+from benchmarks.c_replica import COLUMNS, pull_c
+from peghole_mjx.experiments import compliance as cx
+from peghole_mjx.experiments import contact_check as cc
+from peghole_mjx.experiments import sweep as sw
+
+
+def test_c_replica_holds_the_standard_case_at_the_oracle_force():
+    """The standard tilted case (K_theta 300 N m/rad, L_C at the tip) in MuJoCo C, float64:
+    sustained two-point contact and the late peak F_z within 10 % of the quasi-static oracle."""
+    trace, settle, dt = pull_c("rect-2", cc.STANDARD_MU, cc.STANDARD_CASE, 0.02)
+    assert trace.shape[1] == len(COLUMNS) and np.all(np.isfinite(trace))
+    row = ps.summarise(trace, settle, dt, cx.EARLY_MM["rect"])
+    tab = {k: np.array([v]) for k, v in cc.STANDARD_CASE.items()}
+    h0 = sw._h0_mm("rect-2", cx.ExperimentConfig())
+    oracle = cx.quasi_static_peaks(cx.quasi_static("rect-2", cc.STANDARD_MU, tab, h0), h0, 5.0)
+    assert row["peak_fz_late_N"] == pytest.approx(float(oracle[0]), rel=0.10)
+    assert row["both_walls_frac_in_two_point"] >= 0.9
+    assert row["penetration_um"] < 12.5  # 25 % of rect-2's radial clearance
+
+
+def _rows(repeats: int, peaks: dict[float, float]) -> dict[str, dict]:
+    c = ps.cell(3.0, -0.2)
+    out = {}
+    for lc_mm, p in peaks.items():
+        for r in range(repeats):
+            key = json.dumps([3.0, -0.2, 2.0, lc_mm * 1e-3, r])
+            out[key] = {
+                "peak_fz_late_N": p * (1 + 0.1 * r),
+                "oracle_peak_fz_late_N": 2 * p,
+                "both_walls_frac_in_two_point": 0.5,
+            }
+    return c, out
+
+
+def test_reductions_pair_the_same_draws_across_l_c():
+    c, rows = _rows(4, {0.0: 1.0, 75.0: 2.0, 150.0: 4.0})
+    red = ps.reductions(rows, c, 2.0, 4)
+    assert red["n_repeats"] == 4
+    assert red["reduction_tip_vs_top_pct"]["value"] == pytest.approx(75.0)
+    assert red["reduction_tip_vs_centre_pct"]["value"] == pytest.approx(50.0)
+    # every repeat scales tip and top alike: the paired interval collapses on the value
+    lo, hi = red["reduction_tip_vs_top_pct"]["ci95"]
+    assert lo == pytest.approx(75.0) and hi == pytest.approx(75.0)
+    assert red["reduction_tip_vs_top_pct"]["oracle"] == pytest.approx(75.0)
+
+
+def test_reductions_wait_for_every_world_of_the_cell():
+    c, rows = _rows(4, {0.0: 1.0, 75.0: 2.0, 150.0: 4.0})
+    rows.pop(next(iter(rows)))
+    assert ps.reductions(rows, c, 2.0, 4) is None
+
+
+def test_jobs_cover_every_cell_speed_l_c_and_repeat_once():
+    jobs = ps.jobs([ps.cell(3.0, -0.2)], (20.0, 2.0), 2, 0)
+    keys = [j[0] for j in jobs]
+    assert len(keys) == len(set(keys)) == 2 * 3 * 2
+    assert all(np.isfinite(j[4]) for j in jobs)  # the oracle's late peak of each world
