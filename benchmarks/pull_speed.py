@@ -20,9 +20,11 @@ windows. Per cell and speed: the tip-vs-top and tip-vs-centre reductions with pa
 bootstrap intervals beside the oracle's. Rows are appended to ``--out`` as each world
 finishes; a rerun skips the worlds already there (resumable)::
 
-    python -m benchmarks.pull_speed                     # the default grid, 2 processes
+    python -m benchmarks.pull_speed                     # rect: the plan's cells, 2 processes
+    python -m benchmarks.pull_speed --geometry dual     # dual
     python -m benchmarks.pull_speed --speeds 20,5 --repeats 4 --out /tmp/ps.json
     python -m benchmarks.pull_speed --mjx     # MJX spot checks (float64 and float32)
+    python -m benchmarks.pull_speed --mechanism   # one world, one rate-dependent term changed
 """
 
 from __future__ import annotations
@@ -31,6 +33,7 @@ import argparse
 import json
 import multiprocessing as mp
 import time
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
@@ -42,23 +45,41 @@ from benchmarks.c_replica import COLUMNS, pull_c
 from peghole_mjx.experiments import compliance as cx
 from peghole_mjx.experiments import sweep as sw
 from peghole_mjx.fileio import write_text
-from peghole_mjx.geometry.specs import MM
+from peghole_mjx.geometry.specs import MM, PRESETS
 from peghole_mjx.provenance import provenance
 
-PRESET = "rect-2"
 MU = 0.266
-#: (K_theta N m/rad, beta0 deg) of the cells mapped: the two K_theta = 3 N m/rad cells where
-#: the sweep departs from the oracle, the K_theta = 30 N m/rad cell nearest R1 and the
-#: project's default (300 N m/rad)
-CELLS = ((3.0, -0.2), (3.0, 0.2), (30.0, -0.2), (300.0, -0.2))
-SPEEDS_MM_S = (20.0, 2.0)
+
+
+@dataclass(frozen=True)
+class Plan:
+    """What is mapped per geometry: the preset, the (K_theta N m/rad, beta0 deg) cells and the
+    pull speeds (mm/s: the sweep's 20 and a slow one near the quasi-static limit)."""
+
+    preset: str
+    cells: tuple[tuple[float, float], ...]
+    speeds_mm_s: tuple[float, ...]
+
+
+#: rect: the two K_theta = 3 N m/rad cells where the sweep departs from the oracle, 10 N m/rad
+#: (where the oracle puts R1), 30 (the sweep's best match) and 300 (the project's default);
+#: dual: K_theta = 3 N m/rad, beta0 -0.2 deg (the only swept cell where the oracle predicts
+#: R2's ordering). The slow speeds: where one world's late peak came within a few
+#: per cent of the oracle's before the run (rect 1-2 mm/s, the ``--mechanism`` rows; dual
+#: 0.5 mm/s, one world, 2026-11-29).
+PLANS = {
+    "rect": Plan(
+        "rect-2", ((3.0, -0.2), (3.0, 0.2), (10.0, -0.2), (30.0, -0.2), (300.0, -0.2)), (20.0, 2.0)
+    ),
+    "dual": Plan("dual-2", ((3.0, -0.2),), (20.0, 0.5)),
+}
 REPEATS = 16
 
 
-def cell(k_rot: float, beta0: float) -> dict:
+def cell(k_rot: float, beta0: float, geometry: str = "rect") -> dict:
     """The regime-sweep cell (same keys as :meth:`Grid.cells`)."""
     return {
-        "preset": PRESET,
+        "preset": PLANS[geometry].preset,
         "mu": MU,
         "k_rot_Nm_rad": k_rot,
         "k_lat_N_m": 300.0,
@@ -97,23 +118,27 @@ def summarise(trace: np.ndarray, settle: int, dt: float, skip_mm: float) -> dict
     }
 
 
+def _geometry(c: dict) -> str:
+    return PRESETS[c["preset"]].kind
+
+
 def _job(args: tuple) -> dict:
     key, c, speed_mm_s, world, oracle = args
     t0 = time.perf_counter()
     trace, settle, dt = pull_c(c["preset"], c["mu"], world, speed_mm_s * MM)
-    row = summarise(trace, settle, dt, cx.EARLY_MM["rect"])
+    row = summarise(trace, settle, dt, cx.EARLY_MM[_geometry(c)])
     return {"key": key, **row, "oracle_peak_fz_late_N": oracle, "wall_s": time.perf_counter() - t0}
 
 
 def jobs(cells: list[dict], speeds: tuple[float, ...], repeats: int, seed: int) -> list[tuple]:
     """Every world of every (cell, speed): (key, cell, speed mm/s, world, oracle late peak)."""
-    cfg = cx.ExperimentConfig(geometry="rect")
-    h0 = sw._h0_mm(PRESET, cfg)
     out = []
     for c in cells:
+        g = _geometry(c)
+        h0 = sw._h0_mm(c["preset"], cx.ExperimentConfig(geometry=g))
         tab = sw.cell_table(c, repeats, seed)
         qs = cx.quasi_static(c["preset"], c["mu"], tab, h0)
-        orc = cx.quasi_static_peaks(qs, h0, cx.EARLY_MM["rect"])
+        orc = cx.quasi_static_peaks(qs, h0, cx.EARLY_MM[g])
         for v in speeds:
             for i in range(len(tab["L_C"])):
                 world = {k: float(tab[k][i]) for k in cx.WORLD_KEYS}
@@ -124,7 +149,7 @@ def jobs(cells: list[dict], speeds: tuple[float, ...], repeats: int, seed: int) 
 
 def reductions(rows: dict[str, dict], c: dict, v: float, repeats: int) -> dict | None:
     """Paired reductions of one (cell, speed) from its finished worlds (None if incomplete)."""
-    lcs = np.array(cx.LC_MM["rect"]) * MM
+    lcs = np.array(cx.LC_MM[_geometry(c)]) * MM
     sim = np.full((3, repeats), np.nan)
     orc = np.full((3, repeats), np.nan)
     both = []
@@ -158,43 +183,96 @@ def reductions(rows: dict[str, dict], c: dict, v: float, repeats: int) -> dict |
     return out
 
 
+#: one-world variants of the K_theta 3 N m/rad, beta0 -0.2 deg world at L_C = top (first
+#: repeat): which rate-dependent term moves the force (name -> pull mm/s, law damping ratio,
+#: frictional time constant s, contact damping ratio; None: the experiment's)
+MECHANISM = {
+    "as the experiment (20 mm/s)": (20.0, None, None, None),
+    "5 mm/s": (5.0, None, None, None),
+    "2 mm/s": (2.0, None, None, None),
+    "1 mm/s": (1.0, None, None, None),
+    "law damping ratio 0.3": (20.0, 0.3, None, None),
+    "law damping ratio 0.1": (20.0, 0.1, None, None),
+    "frictional rows relaxed over 10 s": (20.0, None, 10.0, None),
+    "frictional rows relaxed over 0.1 s": (20.0, None, 0.1, None),
+    "contact damping ratio 3": (20.0, None, None, 3.0),
+    "1 mm/s, frictional rows as stiff as the normal": (1.0, None, "stiff", None),
+}
+
+
+def mechanism_row(name: str) -> dict:
+    """One :data:`MECHANISM` variant in MuJoCo C."""
+    import dataclasses
+
+    v, zeta, tcf, dr = MECHANISM[name]
+    c = cell(3.0, -0.2)
+    preset = c["preset"]
+    tab = sw.cell_table(c, REPEATS, 0)
+    i = int(np.flatnonzero(np.isclose(tab["L_C"], cx.LC_MM["rect"][-1] * MM))[0])
+    world = {k: float(tab[k][i]) for k in cx.WORLD_KEYS}
+    cfg = cx.ExperimentConfig(geometry="rect")
+    sim = cfg.sim_options()
+    if tcf is not None:
+        sim = dataclasses.replace(sim, friction_timeconst=None if tcf == "stiff" else tcf)
+    if dr is not None:
+        sim = dataclasses.replace(sim, contact_dampratio=dr)
+    cfg = dataclasses.replace(cfg, sim=sim)
+    t0 = time.perf_counter()
+    trace, settle, dt = pull_c(preset, MU, world, v * MM, cfg, damping_ratio=zeta)
+    h0 = sw._h0_mm(preset, cx.ExperimentConfig(geometry="rect"))
+    tab1 = {k: np.array([world[k]]) for k in cx.WORLD_KEYS}
+    oracle = cx.quasi_static_peaks(cx.quasi_static(preset, MU, tab1, h0), h0, cx.EARLY_MM["rect"])
+    return {
+        "variant": name,
+        "speed_mm_s": v,
+        "law_damping_ratio": zeta,
+        "friction_timeconst_s": tcf,
+        "contact_dampratio": dr,
+        **summarise(trace, settle, dt, cx.EARLY_MM["rect"]),
+        "oracle_peak_fz_late_N": float(oracle[0]),
+        "wall_s": time.perf_counter() - t0,
+    }
+
+
 #: MJX spot checks (K_theta, beta0, speed mm/s, precision): the sweep's first two repeats at
 #: L_C = top, to show that MJX agrees with the MuJoCo C replica
 MJX_CHECKS = (
-    (3.0, -0.2, 20.0, "float64"),
-    (3.0, -0.2, 2.0, "float64"),
-    (3.0, -0.2, 2.0, "float32"),
-    (30.0, -0.2, 20.0, "float64"),
-    (30.0, -0.2, 2.0, "float64"),
+    ("rect", 3.0, -0.2, 20.0, "float64"),
+    ("rect", 3.0, -0.2, 2.0, "float64"),
+    ("rect", 3.0, -0.2, 2.0, "float32"),
+    ("rect", 30.0, -0.2, 20.0, "float64"),
+    ("rect", 30.0, -0.2, 2.0, "float64"),
+    ("rect", 300.0, -0.2, 2.0, "float32"),
+    ("dual", 3.0, -0.2, 0.5, "float64"),
 )
 MJX_REPEATS = 2
 
 
-def mjx_check(k_rot: float, beta0: float, speed_mm_s: float, precision: str) -> dict:
+def mjx_check(geometry: str, k_rot: float, beta0: float, speed_mm_s: float, precision: str) -> dict:
     """The experiment itself (:class:`~peghole_mjx.experiments.compliance.Extraction`, MJX)
     on the first :data:`MJX_REPEATS` worlds of the cell at L_C = top. Run it in a fresh
     process: float64 is a process-wide JAX flag."""
     import jax
 
     jax.config.update("jax_enable_x64", precision == "float64")
-    c = cell(k_rot, beta0)
-    cfg = cx.ExperimentConfig(geometry="rect", speed_m_s=speed_mm_s * MM)
-    tab = sw.cell_table(c, MJX_REPEATS, 0)
-    sel = np.isclose(tab["L_C"], cx.LC_MM["rect"][-1] * MM)
-    tab = {k: v[sel] for k, v in tab.items()}
+    c = cell(k_rot, beta0, geometry)
+    preset, early = c["preset"], cx.EARLY_MM[geometry]
+    cfg = cx.ExperimentConfig(geometry=geometry, speed_m_s=speed_mm_s * MM)
+    tab = _check_worlds(geometry, k_rot, beta0)
     t0 = time.perf_counter()
-    res = cx.Extraction(PRESET, cfg, mu=MU).run(progress=False, table=tab)
-    h0 = sw._h0_mm(PRESET, cfg)
-    qs = cx.quasi_static(PRESET, MU, tab, h0)
+    res = cx.Extraction(preset, cfg, mu=MU).run(progress=False, table=tab)
+    h0 = sw._h0_mm(preset, cfg)
+    qs = cx.quasi_static(preset, MU, tab, h0)
     tp = res["two_point"]
     return {
+        "geometry": geometry,
         "k_rot_Nm_rad": k_rot,
         "beta0_deg": beta0,
         "speed_mm_s": speed_mm_s,
         "precision": precision,
-        "L_C_mm": cx.LC_MM["rect"][-1],
-        "peak_fz_late_N": cx.peaks(res, cx.EARLY_MM["rect"])["fz"].tolist(),
-        "oracle_peak_fz_late_N": cx.quasi_static_peaks(qs, h0, cx.EARLY_MM["rect"]).tolist(),
+        "L_C_mm": cx.LC_MM[geometry][-1],
+        "peak_fz_late_N": cx.peaks(res, early)["fz"].tolist(),
+        "oracle_peak_fz_late_N": cx.quasi_static_peaks(qs, h0, early).tolist(),
         "both_walls_frac_in_two_point": [
             float(np.mean(res["both_frac"][w][tp[w]])) if tp[w].any() else None
             for w in range(len(tp))
@@ -204,27 +282,60 @@ def mjx_check(k_rot: float, beta0: float, speed_mm_s: float, precision: str) -> 
     }
 
 
+def _check_worlds(geometry: str, k_rot: float, beta0: float) -> dict[str, np.ndarray]:
+    """The worlds of an MJX spot check: the cell's first repeats at L_C = top."""
+    tab = sw.cell_table(cell(k_rot, beta0, geometry), MJX_REPEATS, 0)
+    sel = np.isclose(tab["L_C"], cx.LC_MM[geometry][-1] * MM)
+    return {k: v[sel] for k, v in tab.items()}
+
+
+def c_twin(row: dict) -> dict:
+    """The MuJoCo C replica on the same worlds as an MJX spot-check row."""
+    g = row.get("geometry", "rect")
+    tab = _check_worlds(g, row["k_rot_Nm_rad"], row["beta0_deg"])
+    peaks, both = [], []
+    for i in range(len(tab["L_C"])):
+        world = {k: float(tab[k][i]) for k in cx.WORLD_KEYS}
+        c = cell(row["k_rot_Nm_rad"], row["beta0_deg"], g)
+        trace, settle, dt = pull_c(c["preset"], MU, world, row["speed_mm_s"] * MM)
+        s = summarise(trace, settle, dt, cx.EARLY_MM[g])
+        peaks.append(s["peak_fz_late_N"])
+        both.append(s["both_walls_frac_in_two_point"])
+    return {"c_float64_peak_fz_late_N": peaks, "c_float64_both_walls_frac_in_two_point": both}
+
+
 def run_mjx_checks(out: Path) -> None:
-    """Every :data:`MJX_CHECKS` row not yet in ``out``, each in its own process."""
+    """Every :data:`MJX_CHECKS` row not yet in ``out``, each in its own process; then the
+    MuJoCo C twin of every row that lacks it."""
     import subprocess
     import sys
 
     for chk in tqdm(MJX_CHECKS, desc="MJX checks"):
         doc = json.loads(out.read_text()) if out.exists() else {"rows": []}
-        have = {tuple(r[k] for k in ("k_rot_Nm_rad", "beta0_deg", "speed_mm_s", "precision"))
+        have = {(r.get("geometry", "rect"),
+                 *(r[k] for k in ("k_rot_Nm_rad", "beta0_deg", "speed_mm_s", "precision")))
                 for r in doc["rows"]}  # fmt: skip
         if chk in have:
             continue
         arg = ",".join(str(x) for x in chk)
         cmd = [sys.executable, "-m", "benchmarks.pull_speed", "--mjx-one", arg, "--out", str(out)]
         subprocess.run(cmd, check=True)
+    doc = json.loads(out.read_text())
+    for row in doc["rows"]:
+        if "c_float64_peak_fz_late_N" not in row:
+            row.update(c_twin(row))
+            write_text(out, json.dumps(sw.clean_json(doc), indent=1, allow_nan=False) + "\n")
 
 
 def _mjx_one(arg: str, out: Path) -> None:
-    k, b, v, prec = arg.split(",")
-    row = mjx_check(float(k), float(b), float(v), prec)
+    parts = arg.split(",")
+    if len(parts) == 4:  # a rect row in the form without the geometry
+        parts = ["rect", *parts]
+    g, k, b, v, prec = parts
+    row = mjx_check(g, float(k), float(b), float(v), prec)
     doc = json.loads(out.read_text()) if out.exists() else {"rows": []}
     doc["rows"].append(row)
+    doc["rows"].sort(key=lambda r: r.get("geometry", "rect") != "rect")
     doc.update(engine="MJX-JAX (the experiment), first two repeats at L_C = top", **provenance())
     write_text(out, json.dumps(sw.clean_json(doc), indent=1, allow_nan=False) + "\n")
     print(json.dumps(row))
@@ -232,28 +343,65 @@ def _mjx_one(arg: str, out: Path) -> None:
 
 def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    ap.add_argument("--speeds", default=",".join(f"{v:g}" for v in SPEEDS_MM_S), help="mm/s")
+    ap.add_argument("--geometry", default="rect", choices=list(PLANS))
+    ap.add_argument("--speeds", default=None, help="mm/s, comma-separated (default: the plan's)")
+    ap.add_argument(
+        "--cells", default=None, help="K_THETA:BETA0 pairs, comma-separated (default: the plan's)"
+    )
     ap.add_argument("--repeats", type=int, default=REPEATS)
     ap.add_argument("--seed", type=int, default=0)
     ap.add_argument("--processes", type=int, default=2)
-    ap.add_argument("--out", type=Path, default=RESULTS / "pull_speed_rect.json")
+    ap.add_argument("--out", type=Path, default=None, help="default results/pull_speed_<g>.json")
     ap.add_argument(
-        "--mjx", action="store_true", help="run the MJX spot checks (into <out>_mjx.json) only"
+        "--mjx", action="store_true", help="run the MJX spot checks (pull_speed_mjx.json) only"
+    )
+    ap.add_argument(
+        "--mechanism",
+        action="store_true",
+        help="run the one-world variants (into <out>_mechanism.json) only",
     )
     ap.add_argument("--mjx-one", help=argparse.SUPPRESS)
     args = ap.parse_args()
+    plan = PLANS[args.geometry]
     if args.mjx_one:
         _mjx_one(args.mjx_one, args.out)
         return 0
     if args.mjx:
-        run_mjx_checks(args.out.with_name(args.out.stem + "_mjx.json"))
+        run_mjx_checks(args.out or RESULTS / "pull_speed_mjx.json")
         return 0
-    speeds = tuple(float(s) for s in args.speeds.split(",") if s.strip())
+    if args.out is None:
+        args.out = RESULTS / f"pull_speed_{args.geometry}.json"
+    if args.mechanism:
+        path = args.out.with_name(args.out.stem + "_mechanism.json")
+        rows = json.loads(path.read_text())["rows"] if path.exists() else []
+        done = {r["variant"] for r in rows}
+        for name in tqdm([n for n in MECHANISM if n not in done], desc="mechanism"):
+            rows.append(mechanism_row(name))
+            rows.sort(key=lambda r: list(MECHANISM).index(r["variant"]))
+            doc = {"cell": cell(3.0, -0.2), "L_C_mm": cx.LC_MM["rect"][-1], "repeat": 0,
+                   "engine": "MuJoCo C, float64", "rows": rows, **provenance()}  # fmt: skip
+            write_text(path, json.dumps(sw.clean_json(doc), indent=1, allow_nan=False) + "\n")
+        print(path)
+        return 0
+    if args.speeds is None:
+        speeds = plan.speeds_mm_s
+    else:
+        speeds = tuple(float(s) for s in args.speeds.split(",") if s.strip())
     if not speeds or any(v <= 0 for v in speeds):
         raise SystemExit("--speeds must be positive mm/s values")
     if args.repeats < 2:
         raise SystemExit("--repeats must be >= 2 (intervals need two draws)")
-    cells = [cell(k, b) for k, b in CELLS]
+    pairs = plan.cells
+    if args.cells is not None:
+        try:
+            pairs = tuple(
+                tuple(float(x) for x in c.split(":")) for c in args.cells.split(",") if c.strip()
+            )
+        except ValueError:
+            raise SystemExit("--cells takes K_THETA:BETA0 pairs, e.g. 3:-0.2,30:-0.2") from None
+        if not pairs or any(len(c) != 2 or c[0] <= 0 for c in pairs):
+            raise SystemExit("--cells takes K_THETA:BETA0 pairs with K_THETA > 0")
+    cells = [cell(k, b, args.geometry) for k, b in pairs]
     parts = args.out.with_suffix(".parts.jsonl")
     rows = {}
     if parts.exists():
@@ -274,18 +422,20 @@ def main() -> int:
         s for c in cells for v in speeds if (s := reductions(rows, c, v, args.repeats)) is not None
     ]
     doc = {
-        "preset": PRESET,
+        "preset": plan.preset,
         "mu": MU,
         "engine": "MuJoCo C, float64, NumPy impedance law; the experiment's scene and settings",
         "settings": {
-            "experiment": cx.config_dict(cx.ExperimentConfig(geometry="rect")),
+            "experiment": cx.config_dict(cx.ExperimentConfig(geometry=args.geometry)),
             "repeats": args.repeats,
             "seed": args.seed,
-            "skip_mm": cx.EARLY_MM["rect"],
+            "skip_mm": cx.EARLY_MM[args.geometry],
         },
         "cells": summary,
         "worlds": sorted(rows.values(), key=lambda r: r["key"]),
         "runtime_s": round(time.perf_counter() - t0, 1),
+        #: the pulls' own time summed over the worlds (the run may span resumed invocations)
+        "pulls_wall_s": round(sum(r["wall_s"] for r in rows.values()), 1),
         **provenance(),
     }
     write_text(args.out, json.dumps(sw.clean_json(doc), indent=1, allow_nan=False) + "\n")

@@ -320,8 +320,13 @@ def contact_check() -> str:
     )
 
 
-def _sweep_rows(path: Path) -> list[str]:
-    d = json.loads(path.read_text())
+def _per_geometry(name: str) -> list[dict]:
+    """The committed result file ``name`` (with ``{geom}`` in it) of each geometry, rect first."""
+    paths = [RESULTS / name.format(geom=g) for g in ("rect", "dual")]
+    return [json.loads(p.read_text()) for p in paths if p.exists()]
+
+
+def _sweep_rows(d: dict) -> list[str]:
 
     def red(x):
         if x["value"] is None:
@@ -353,15 +358,11 @@ def _sweep_table(suffix: str) -> str:
     ]
     lines = list(head)
     notes = []
-    for geom in ("rect", "dual"):
-        path = RESULTS / f"compliance_sweep_{geom}{suffix}.json"
-        if not path.exists():
-            continue
-        d = json.loads(path.read_text())
-        lines += _sweep_rows(path)
+    for d in _per_geometry(f"compliance_sweep_{{geom}}{suffix}.json"):
+        lines += _sweep_rows(d)
         notes.append(
-            f"{geom}: {sum(c['n_worlds'] for c in d['cells'])} worlds, {d['device']}, "
-            f"{d['date'][:10]}, {d['runtime_s'] / 60:.0f} min"
+            f"{d['geometry']}: {sum(c['n_worlds'] for c in d['cells'])} worlds, {d['device']}, "
+            f"{d['date'][:10]}, {d['runtime_s'] / 60:.0f} min in the invocation that wrote the file"
         )
     return "\n".join([*lines, "", "Runs: " + "; ".join(notes) + "."])
 
@@ -391,13 +392,95 @@ def low_stiffness_check() -> str:
         "|---|---|---|---|---|",
     ]
     for r in d["rows"]:
-        pk = " / ".join("NaN" if v is None else f"{v:.3f}" for v in r["peak_fz_late_N"])
-        orc = " / ".join(f"{v:.3f}" for v in r["oracle_peak_fz_late_N"])
-        both = " / ".join(
-            "-" if v is None else f"{v:.2f}" for v in r["both_walls_frac_in_two_point"]
-        )
+        pk, orc, both = _per_world(r)
         lines.append(f"| {r['variant']} | {pk} | {orc} | {both} | {sum(r['nan'])} |")
     return "\n".join(lines)
+
+
+def _per_world(r: dict) -> tuple[str, str, str]:
+    """Per-world late peak, oracle peak and both-walls fraction of a check row, as text."""
+    pk = " / ".join("NaN" if v is None else f"{v:.3f}" for v in r["peak_fz_late_N"])
+    orc = " / ".join(f"{v:.3f}" for v in r["oracle_peak_fz_late_N"])
+    both = " / ".join("-" if v is None else f"{v:.2f}" for v in r["both_walls_frac_in_two_point"])
+    return pk, orc, both
+
+
+def pull_speed() -> str:
+    """The regime-sweep cells pulled at several speeds in MuJoCo C, float64
+    (benchmarks/pull_speed.py), one world's rate-dependent terms, and the MJX spot checks."""
+    lines = [
+        "| preset | K_theta N m/rad | beta0 deg | pull mm/s | mean peak F_z N: tip / centre / "
+        "top (oracle) | tip vs top % [95 % CI] | oracle | tip vs centre % [95 % CI] | oracle | "
+        "both walls loaded, median |",
+        "|---|---|---|---|---|---|---|---|---|---|",
+    ]
+    notes = []
+    for d in _per_geometry("pull_speed_{geom}.json"):
+        notes.append(
+            f"{d['preset']}: {d['settings']['repeats']} paired repeats per L_C, {d['device']}, "
+            f"{d['date'][:10]}, {d['pulls_wall_s'] / 60:.0f} min of pulls (one core each)"
+        )
+        for c in d["cells"]:
+            pk = " / ".join(f"{v:.3g}" for v in c["peak_fz_N"].values())
+            orc = " / ".join(f"{v:.3g}" for v in c["oracle_peak_fz_N"].values())
+            top, cen = c["reduction_tip_vs_top_pct"], c["reduction_tip_vs_centre_pct"]
+            both = c["both_walls_frac_median"]
+            lines.append(
+                f"| {d['preset']} | {c['k_rot_Nm_rad']:g} | {c['beta0_deg']:+g} | "
+                f"{c['speed_mm_s']:g} | {pk} ({orc}) | {_ci(top)} | {top['oracle']:.1f} | "
+                f"{_ci(cen)} | {cen['oracle']:.1f} | {'-' if both is None else f'{both:.2f}'} |"
+            )
+    head = "MuJoCo C, float64, mu 0.266, K_lat 300 N/m, delta0 2 mm; "
+    lines += ["", head + "; ".join(notes) + "."]
+    for name, more in (
+        ("pull_speed_rect_mechanism.json", _pull_speed_mechanism),
+        ("pull_speed_mjx.json", _pull_speed_mjx),
+    ):
+        if (RESULTS / name).exists():
+            lines += ["", *more(json.loads((RESULTS / name).read_text()))]
+    return "\n".join(lines)
+
+
+def _pull_speed_mechanism(m: dict) -> list[str]:
+    """One world, one rate-dependent term changed (``pull_speed --mechanism``)."""
+    lines = [
+        f"One world (K_theta 3 N m/rad, beta0 -0.2 deg, L_C = top, the first repeat), one "
+        f"rate-dependent term changed at a time; {m['engine']}; {m['device']}, "
+        f"{m['date'][:10]}:",
+        "",
+        "| variant | late peak F_z N | oracle N | both walls loaded | effective mu |",
+        "|---|---|---|---|---|",
+    ]
+    for r in m["rows"]:
+        both = r["both_walls_frac_in_two_point"]
+        lines.append(
+            f"| {r['variant']} | {_num(r['peak_fz_late_N'], '.3f')} | "
+            f"{r['oracle_peak_fz_late_N']:.3f} | {'-' if both is None else f'{both:.2f}'} | "
+            f"{r['mu_eff']:.3f} |"
+        )
+    return lines
+
+
+def _pull_speed_mjx(m: dict) -> list[str]:
+    """The MJX spot checks beside the MuJoCo C replica on the same worlds (``--mjx``)."""
+    lines = [
+        f"The experiment itself (MJX-JAX), the first two repeats at L_C = top; {m['device']}, "
+        f"{m['date'][:10]}:",
+        "",
+        "| preset | K_theta N m/rad | beta0 deg | pull mm/s | MJX precision | MJX late peak "
+        "F_z N (per world) | MuJoCo C float64, same worlds | oracle N | MJX both walls "
+        "loaded |",
+        "|---|---|---|---|---|---|---|---|---|",
+    ]
+    for r in m["rows"]:
+        pk, orc, both = _per_world(r)
+        preset = f"{r.get('geometry', 'rect')}-2"
+        twin = " / ".join(_num(v, ".3f") for v in r.get("c_float64_peak_fz_late_N", []))
+        lines.append(
+            f"| {preset} | {r['k_rot_Nm_rad']:g} | {r['beta0_deg']:+g} | {r['speed_mm_s']:g} "
+            f"| {r['precision']} | {pk} | {twin or '-'} | {orc} | {both} |"
+        )
+    return lines
 
 
 def _cell_name(c: dict) -> str:
@@ -803,6 +886,7 @@ TABLES = {
     "compliance_findings": compliance_findings,
     "compliance_sweep_envs_law": compliance_sweep_envs_law,
     "low_stiffness_check": low_stiffness_check,
+    "pull_speed": pull_speed,
     "throughput": throughput,
     "roofline": roofline,
     "cost": cost,
@@ -825,6 +909,7 @@ TABLE_FILES = {
     "compliance_findings": "docs/compliance.md",
     "compliance_sweep_envs_law": "docs/compliance.md",
     "low_stiffness_check": "docs/compliance.md",
+    "pull_speed": "docs/compliance.md",
     "env_rollouts": "docs/envs.md",
     "pretrained": "docs/results.md",
     "force_sources": "docs/results.md",

@@ -597,6 +597,38 @@ def summary_table(result: dict) -> str:
     return "\n".join(rows)
 
 
+def _force_depth_cells(result: dict) -> list[dict]:
+    """The cells whose force-depth curves are drawn: one friction in the grid: the cell
+    nearest R1 and a stiffest-K_theta cell; several: the cell where the oracle predicts the
+    largest tip-vs-top reduction, the same cell at every other friction, and the stiffest
+    K_theta at its friction (R2: mu 0.01 against 0.266)."""
+    cells = result["cells"]
+    stiff_k = max(c["k_rot_Nm_rad"] for c in cells)
+    mus = sorted({c["mu"] for c in cells})
+    if len(mus) == 1:
+        best = result.get("best_match_R1")
+        shown = []
+        if best is not None:
+            shown.append(next(c for c in cells if all(c[k] == v for k, v in best["cell"].items())))
+        shown += [c for c in cells if c["k_rot_Nm_rad"] == stiff_k][:1]
+        return shown
+    focus = max(cells, key=lambda c: c["quasi_static"]["reduction_tip_vs_top_pct"])
+    keys = ("preset", "k_rot_Nm_rad", "k_lat_N_m", "delta0_mm", "beta0_deg", "theta0_deg")
+    shown = [focus]
+    for mu in mus:
+        if mu != focus["mu"]:
+            shown += [c for c in cells if c["mu"] == mu and all(c[k] == focus[k] for k in keys)]
+    shown += [
+        c
+        for c in cells
+        if c["mu"] == focus["mu"]
+        and c["k_rot_Nm_rad"] == stiff_k
+        and c["beta0_deg"] == focus["beta0_deg"]
+        and c is not focus
+    ][:1]
+    return shown
+
+
 def write_figures(result: dict, out: Path) -> list[Path]:
     """``reduction_vs_regime_<g>.png`` (simulated reductions with intervals over the oracle's,
     against K_lat L_C,top^2 / K_theta, R1 marked) and ``force_depth_<g>.png`` (mean F_z against
@@ -653,19 +685,7 @@ def write_figures(result: dict, out: Path) -> list[Path]:
     plt.close(fig)
     paths.append(p)
 
-    best = result.get("best_match_R1")
-    stiff = [c for c in cells if c["k_rot_Nm_rad"] == max(x["k_rot_Nm_rad"] for x in cells)]
-    shown = []
-    if best is not None:
-        shown.append(next(c for c in cells if all(c[k] == v for k, v in best["cell"].items())))
-    if stiff:
-        shown.append(stiff[0])
-    # a grid with several friction values: the cell nearest R1 at each of the others too
-    for mu in sorted({c["mu"] for c in cells}):
-        if shown and mu != shown[0]["mu"]:
-            same = {k: shown[0][k] for k in ("preset", "k_rot_Nm_rad", "k_lat_N_m", "delta0_mm")}
-            same.update(beta0_deg=shown[0]["beta0_deg"], theta0_deg=shown[0]["theta0_deg"])
-            shown += [c for c in cells if c["mu"] == mu and all(c[k] == v for k, v in same.items())]
+    shown = _force_depth_cells(result)
     if shown:
         fig, axes = plt.subplots(1, len(shown), figsize=(5.5 * len(shown), 4), squeeze=False)
         for ax, c in zip(axes[0], shown, strict=True):
