@@ -234,8 +234,9 @@ def mechanism_row(name: str) -> dict:
     }
 
 
-#: MJX spot checks (K_theta, beta0, speed mm/s, precision): the sweep's first two repeats at
-#: L_C = top, to show that MJX agrees with the MuJoCo C replica
+#: MJX spot checks (geometry, K_theta, beta0, speed mm/s, precision[, physics step ms]): the
+#: sweep's first two repeats at L_C = top, to show that MJX agrees with the MuJoCo C replica;
+#: the rows with a step are float32 at the envs' 2 ms step (the experiment's rect step is 1 ms)
 MJX_CHECKS = (
     ("rect", 3.0, -0.2, 20.0, "float64"),
     ("rect", 3.0, -0.2, 2.0, "float64"),
@@ -244,11 +245,31 @@ MJX_CHECKS = (
     ("rect", 30.0, -0.2, 2.0, "float64"),
     ("rect", 300.0, -0.2, 2.0, "float32"),
     ("dual", 3.0, -0.2, 0.5, "float64"),
+    ("rect", 300.0, -0.2, 2.0, "float32", 2.0),
+    ("rect", 300.0, -0.2, 1.0, "float32", 2.0),
 )
 MJX_REPEATS = 2
 
 
-def mjx_check(geometry: str, k_rot: float, beta0: float, speed_mm_s: float, precision: str) -> dict:
+def _config(geometry: str, speed_mm_s: float, step_ms: float | None) -> cx.ExperimentConfig:
+    """The experiment's settings at this pull speed (and physics step, if given)."""
+    import dataclasses
+
+    cfg = cx.ExperimentConfig(geometry=geometry, speed_m_s=speed_mm_s * MM)
+    if step_ms is not None:
+        sim = dataclasses.replace(cfg.sim_options(), timestep=step_ms * 1e-3)
+        cfg = dataclasses.replace(cfg, sim=sim)
+    return cfg
+
+
+def mjx_check(
+    geometry: str,
+    k_rot: float,
+    beta0: float,
+    speed_mm_s: float,
+    precision: str,
+    step_ms: float | None = None,
+) -> dict:
     """The experiment itself (:class:`~peghole_mjx.experiments.compliance.Extraction`, MJX)
     on the first :data:`MJX_REPEATS` worlds of the cell at L_C = top. Run it in a fresh
     process: float64 is a process-wide JAX flag."""
@@ -257,7 +278,7 @@ def mjx_check(geometry: str, k_rot: float, beta0: float, speed_mm_s: float, prec
     jax.config.update("jax_enable_x64", precision == "float64")
     c = cell(k_rot, beta0, geometry)
     preset, early = c["preset"], cx.EARLY_MM[geometry]
-    cfg = cx.ExperimentConfig(geometry=geometry, speed_m_s=speed_mm_s * MM)
+    cfg = _config(geometry, speed_mm_s, step_ms)
     tab = _check_worlds(geometry, k_rot, beta0)
     t0 = time.perf_counter()
     res = cx.Extraction(preset, cfg, mu=MU).run(progress=False, table=tab)
@@ -270,6 +291,7 @@ def mjx_check(geometry: str, k_rot: float, beta0: float, speed_mm_s: float, prec
         "beta0_deg": beta0,
         "speed_mm_s": speed_mm_s,
         "precision": precision,
+        "timestep_ms": cfg.sim_options().timestep * 1e3,
         "L_C_mm": cx.LC_MM[geometry][-1],
         "peak_fz_late_N": cx.peaks(res, early)["fz"].tolist(),
         "oracle_peak_fz_late_N": cx.quasi_static_peaks(qs, h0, early).tolist(),
@@ -297,11 +319,26 @@ def c_twin(row: dict) -> dict:
     for i in range(len(tab["L_C"])):
         world = {k: float(tab[k][i]) for k in cx.WORLD_KEYS}
         c = cell(row["k_rot_Nm_rad"], row["beta0_deg"], g)
-        trace, settle, dt = pull_c(c["preset"], MU, world, row["speed_mm_s"] * MM)
+        cfg = _config(g, row["speed_mm_s"], row.get("timestep_ms"))
+        trace, settle, dt = pull_c(c["preset"], MU, world, row["speed_mm_s"] * MM, cfg)
         s = summarise(trace, settle, dt, cx.EARLY_MM[g])
         peaks.append(s["peak_fz_late_N"])
         both.append(s["both_walls_frac_in_two_point"])
     return {"c_float64_peak_fz_late_N": peaks, "c_float64_both_walls_frac_in_two_point": both}
+
+
+def _check_key(x: dict | tuple) -> tuple:
+    """(geometry, K_theta, beta0, speed, precision, step ms or None) of a check or a row; rows
+    at the experiment's own step and checks without a step compare equal."""
+    if isinstance(x, tuple):
+        return (*x[:5], x[5] if len(x) > 5 else None)
+    step = x.get("timestep_ms")
+    own = cx.TIMESTEP_S[x.get("geometry", "rect")] * 1e3
+    return (
+        x.get("geometry", "rect"),
+        *(x[k] for k in ("k_rot_Nm_rad", "beta0_deg", "speed_mm_s", "precision")),
+        None if step is None or abs(step - own) < 1e-9 else step,
+    )
 
 
 def run_mjx_checks(out: Path) -> None:
@@ -312,10 +349,8 @@ def run_mjx_checks(out: Path) -> None:
 
     for chk in tqdm(MJX_CHECKS, desc="MJX checks"):
         doc = json.loads(out.read_text()) if out.exists() else {"rows": []}
-        have = {(r.get("geometry", "rect"),
-                 *(r[k] for k in ("k_rot_Nm_rad", "beta0_deg", "speed_mm_s", "precision")))
-                for r in doc["rows"]}  # fmt: skip
-        if chk in have:
+        have = {_check_key(r) for r in doc["rows"]}
+        if _check_key(chk) in have:
             continue
         arg = ",".join(str(x) for x in chk)
         cmd = [sys.executable, "-m", "benchmarks.pull_speed", "--mjx-one", arg, "--out", str(out)]
@@ -331,8 +366,8 @@ def _mjx_one(arg: str, out: Path) -> None:
     parts = arg.split(",")
     if len(parts) == 4:  # a rect row in the form without the geometry
         parts = ["rect", *parts]
-    g, k, b, v, prec = parts
-    row = mjx_check(g, float(k), float(b), float(v), prec)
+    g, k, b, v, prec, *step = parts
+    row = mjx_check(g, float(k), float(b), float(v), prec, float(step[0]) if step else None)
     doc = json.loads(out.read_text()) if out.exists() else {"rows": []}
     doc["rows"].append(row)
     doc["rows"].sort(key=lambda r: r.get("geometry", "rect") != "rect")

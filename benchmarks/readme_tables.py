@@ -461,13 +461,20 @@ def _pull_speed_mechanism(m: dict) -> list[str]:
     return lines
 
 
+def _step_ms(r: dict) -> float:
+    """The physics step of an MJX spot-check row (older rows ran at the experiment's)."""
+    from peghole_mjx.experiments.compliance import TIMESTEP_S
+
+    return r.get("timestep_ms") or TIMESTEP_S[r.get("geometry", "rect")] * 1e3
+
+
 def _pull_speed_mjx(m: dict) -> list[str]:
     """The MJX spot checks beside the MuJoCo C replica on the same worlds (``--mjx``)."""
     lines = [
         f"The experiment itself (MJX-JAX), the first two repeats at L_C = top; {m['device']}, "
         f"{m['date'][:10]}:",
         "",
-        "| preset | K_theta N m/rad | beta0 deg | pull mm/s | MJX precision | MJX late peak "
+        "| preset | K_theta N m/rad | beta0 deg | pull mm/s | MJX precision, step | MJX late peak "
         "F_z N (per world) | MuJoCo C float64, same worlds | oracle N | MJX both walls "
         "loaded |",
         "|---|---|---|---|---|---|---|---|---|",
@@ -478,7 +485,7 @@ def _pull_speed_mjx(m: dict) -> list[str]:
         twin = " / ".join(_num(v, ".3f") for v in r.get("c_float64_peak_fz_late_N", []))
         lines.append(
             f"| {preset} | {r['k_rot_Nm_rad']:g} | {r['beta0_deg']:+g} | {r['speed_mm_s']:g} "
-            f"| {r['precision']} | {pk} | {twin or '-'} | {orc} | {both} |"
+            f"| {r['precision']}, {_step_ms(r):g} ms | {pk} | {twin or '-'} | {orc} | {both} |"
         )
     return lines
 
