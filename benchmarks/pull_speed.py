@@ -25,6 +25,7 @@ finishes; a rerun skips the worlds already there (resumable)::
     python -m benchmarks.pull_speed --speeds 20,5 --repeats 4 --out /tmp/ps.json
     python -m benchmarks.pull_speed --mjx     # MJX spot checks (float64 and float32)
     python -m benchmarks.pull_speed --mechanism   # one world, one rate-dependent term changed
+    python -m benchmarks.pull_speed --plot    # redraw pull_speed_rect.png from the results
 """
 
 from __future__ import annotations
@@ -376,6 +377,46 @@ def _mjx_one(arg: str, out: Path) -> None:
     print(json.dumps(row))
 
 
+def write_figure(rect: dict, mechanism: dict | None, path: Path) -> Path:
+    """``pull_speed_rect.png``: per cell, the mean late peak F_z at L_C = top over the oracle's
+    against the pull speed, and the one-world speed series of ``--mechanism``."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fig, ax = plt.subplots(figsize=(6.5, 4.2))
+    cells = sorted({(c["k_rot_Nm_rad"], c["beta0_deg"]) for c in rect["cells"]})
+    for k, b in cells:
+        sel = sorted(
+            (c for c in rect["cells"] if (c["k_rot_Nm_rad"], c["beta0_deg"]) == (k, b)),
+            key=lambda c: c["speed_mm_s"],
+        )
+        v = [c["speed_mm_s"] for c in sel]
+        ratio = [c["peak_fz_N"]["top"] / c["oracle_peak_fz_N"]["top"] for c in sel]
+        ax.plot(v, ratio, "o-", label=f"K_theta {k:g} N m/rad, beta0 {b:+g} deg (16 worlds)")
+    if mechanism is not None:
+        rows = [r for r in mechanism["rows"] if r["variant"] == f"{r['speed_mm_s']:g} mm/s"]
+        rows += [r for r in mechanism["rows"] if r["variant"].startswith("as the experiment")]
+        rows.sort(key=lambda r: r["speed_mm_s"])
+        ax.plot(
+            [r["speed_mm_s"] for r in rows],
+            [r["peak_fz_late_N"] / r["oracle_peak_fz_late_N"] for r in rows],
+            "k--x",
+            label="K_theta 3 N m/rad, one world",
+        )
+    ax.axhline(1.0, color="grey", lw=0.8)
+    ax.set_xscale("log")
+    ax.set_xlabel("pull speed, mm/s")
+    ax.set_ylabel("late peak F_z at L_C = top / oracle's")
+    ax.set_title(f"{rect['preset']}: MuJoCo C replica, float64", fontsize=10)
+    ax.legend(fontsize=7)
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+    return path
+
+
 def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--geometry", default="rect", choices=list(PLANS))
@@ -395,6 +436,9 @@ def main() -> int:
         action="store_true",
         help="run the one-world variants (into <out>_mechanism.json) only",
     )
+    ap.add_argument(
+        "--plot", action="store_true", help="redraw pull_speed_rect.png from the results only"
+    )
     ap.add_argument("--mjx-one", help=argparse.SUPPRESS)
     args = ap.parse_args()
     plan = PLANS[args.geometry]
@@ -403,6 +447,16 @@ def main() -> int:
         return 0
     if args.mjx:
         run_mjx_checks(args.out or RESULTS / "pull_speed_mjx.json")
+        return 0
+    if args.plot:
+        mech = RESULTS / "pull_speed_rect_mechanism.json"
+        print(
+            write_figure(
+                json.loads((RESULTS / "pull_speed_rect.json").read_text()),
+                json.loads(mech.read_text()) if mech.exists() else None,
+                RESULTS / "pull_speed_rect.png",
+            )
+        )
         return 0
     if args.out is None:
         args.out = RESULTS / f"pull_speed_{args.geometry}.json"
@@ -474,6 +528,15 @@ def main() -> int:
         **provenance(),
     }
     write_text(args.out, json.dumps(sw.clean_json(doc), indent=1, allow_nan=False) + "\n")
+    if args.geometry == "rect":
+        mech = args.out.with_name(args.out.stem + "_mechanism.json")
+        print(
+            write_figure(
+                doc,
+                json.loads(mech.read_text()) if mech.exists() else None,
+                args.out.with_suffix(".png"),
+            )
+        )
     for s in summary:
         top = s["reduction_tip_vs_top_pct"]
         print(

@@ -63,3 +63,9 @@ def test_jobs_cover_every_cell_speed_l_c_and_repeat_once():
     keys = [j[0] for j in jobs]
     assert len(keys) == len(set(keys)) == 2 * 3 * 2
     assert all(np.isfinite(j[4]) for j in jobs)  # the oracle's late peak of each world
+
+
+def test_the_speed_figure_draws_from_the_committed_results(tmp_path):
+    rect = json.loads((ps.RESULTS / "pull_speed_rect.json").read_text())
+    out = ps.write_figure(rect, None, tmp_path / "f.png")
+    assert out.stat().st_size > 10_000
