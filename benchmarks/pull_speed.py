@@ -10,8 +10,9 @@ sweep's paired worlds (:func:`peghole_mjx.experiments.sweep.cell_table`: L_C at 
 / top x repeats, the same error draws for every L_C) are pulled in **MuJoCo C, float64**, with
 the NumPy twin of the impedance law (:func:`peghole_mjx.control.reference.impedance_torque`)
 and the experiment's scene and settings (``ExperimentConfig``: 1 ms step, 10 ms contact time
-constant, frictional rows relaxed over 1 s, edge capsules, joint damping cancelled). MuJoCo C
-runs one world 5-20x faster than MJX on this CPU, which makes slow pulls affordable.
+constant, frictional rows relaxed over 1 s, edge capsules, joint damping cancelled). One world
+of the replica steps at a few thousand steps per second on one core (``wall_s`` per world in
+the JSON), which makes slow pulls affordable on a CPU.
 
 Per world: the late peak F_z (the extraction force as the sum of the contact forces on the
 peg, 20 ms means, Savitzky-Golay filtered like the sweep's, the first 5 mm left out) beside the
@@ -123,6 +124,22 @@ def _geometry(c: dict) -> str:
     return PRESETS[c["preset"]].kind
 
 
+def oracle_late_peaks(c: dict, tab: dict[str, np.ndarray]) -> np.ndarray:
+    """The quasi-static oracle's late peak F_z (N) of each world of ``tab`` in cell ``c``, the
+    first :data:`~peghole_mjx.experiments.compliance.EARLY_MM` of the pull left out."""
+    g = _geometry(c)
+    h0 = sw._h0_mm(c["preset"], cx.ExperimentConfig(geometry=g))
+    qs = cx.quasi_static(c["preset"], c["mu"], tab, h0)
+    return cx.quasi_static_peaks(qs, h0, cx.EARLY_MM[g])
+
+
+def top_worlds(c: dict, repeats: int) -> dict[str, np.ndarray]:
+    """The worlds of cell ``c`` (``repeats`` draws) with L_C at the top of the peg."""
+    tab = sw.cell_table(c, repeats, 0)
+    sel = np.isclose(tab["L_C"], cx.LC_MM[_geometry(c)][-1] * MM)
+    return {k: v[sel] for k, v in tab.items()}
+
+
 def _job(args: tuple) -> dict:
     key, c, speed_mm_s, world, oracle = args
     t0 = time.perf_counter()
@@ -135,11 +152,8 @@ def jobs(cells: list[dict], speeds: tuple[float, ...], repeats: int, seed: int) 
     """Every world of every (cell, speed): (key, cell, speed mm/s, world, oracle late peak)."""
     out = []
     for c in cells:
-        g = _geometry(c)
-        h0 = sw._h0_mm(c["preset"], cx.ExperimentConfig(geometry=g))
         tab = sw.cell_table(c, repeats, seed)
-        qs = cx.quasi_static(c["preset"], c["mu"], tab, h0)
-        orc = cx.quasi_static_peaks(qs, h0, cx.EARLY_MM[g])
+        orc = oracle_late_peaks(c, tab)
         for v in speeds:
             for i in range(len(tab["L_C"])):
                 world = {k: float(tab[k][i]) for k in cx.WORLD_KEYS}
@@ -207,10 +221,8 @@ def mechanism_row(name: str) -> dict:
 
     v, zeta, tcf, dr = MECHANISM[name]
     c = cell(3.0, -0.2)
-    preset = c["preset"]
-    tab = sw.cell_table(c, REPEATS, 0)
-    i = int(np.flatnonzero(np.isclose(tab["L_C"], cx.LC_MM["rect"][-1] * MM))[0])
-    world = {k: float(tab[k][i]) for k in cx.WORLD_KEYS}
+    tab = {k: a[:1] for k, a in top_worlds(c, REPEATS).items()}  # the first repeat
+    world = {k: float(tab[k][0]) for k in cx.WORLD_KEYS}
     cfg = cx.ExperimentConfig(geometry="rect")
     sim = cfg.sim_options()
     if tcf is not None:
@@ -219,10 +231,7 @@ def mechanism_row(name: str) -> dict:
         sim = dataclasses.replace(sim, contact_dampratio=dr)
     cfg = dataclasses.replace(cfg, sim=sim)
     t0 = time.perf_counter()
-    trace, settle, dt = pull_c(preset, MU, world, v * MM, cfg, damping_ratio=zeta)
-    h0 = sw._h0_mm(preset, cx.ExperimentConfig(geometry="rect"))
-    tab1 = {k: np.array([world[k]]) for k in cx.WORLD_KEYS}
-    oracle = cx.quasi_static_peaks(cx.quasi_static(preset, MU, tab1, h0), h0, cx.EARLY_MM["rect"])
+    trace, settle, dt = pull_c(c["preset"], MU, world, v * MM, cfg, damping_ratio=zeta)
     return {
         "variant": name,
         "speed_mm_s": v,
@@ -230,7 +239,7 @@ def mechanism_row(name: str) -> dict:
         "friction_timeconst_s": tcf,
         "contact_dampratio": dr,
         **summarise(trace, settle, dt, cx.EARLY_MM["rect"]),
-        "oracle_peak_fz_late_N": float(oracle[0]),
+        "oracle_peak_fz_late_N": float(oracle_late_peaks(c, tab)[0]),
         "wall_s": time.perf_counter() - t0,
     }
 
@@ -278,24 +287,22 @@ def mjx_check(
 
     jax.config.update("jax_enable_x64", precision == "float64")
     c = cell(k_rot, beta0, geometry)
-    preset, early = c["preset"], cx.EARLY_MM[geometry]
     cfg = _config(geometry, speed_mm_s, step_ms)
-    tab = _check_worlds(geometry, k_rot, beta0)
+    tab = top_worlds(c, MJX_REPEATS)
     t0 = time.perf_counter()
-    res = cx.Extraction(preset, cfg, mu=MU).run(progress=False, table=tab)
-    h0 = sw._h0_mm(preset, cfg)
-    qs = cx.quasi_static(preset, MU, tab, h0)
+    res = cx.Extraction(c["preset"], cfg, mu=MU).run(progress=False, table=tab)
     tp = res["two_point"]
     return {
         "geometry": geometry,
+        "preset": c["preset"],
         "k_rot_Nm_rad": k_rot,
         "beta0_deg": beta0,
         "speed_mm_s": speed_mm_s,
         "precision": precision,
         "timestep_ms": cfg.sim_options().timestep * 1e3,
         "L_C_mm": cx.LC_MM[geometry][-1],
-        "peak_fz_late_N": cx.peaks(res, early)["fz"].tolist(),
-        "oracle_peak_fz_late_N": cx.quasi_static_peaks(qs, h0, early).tolist(),
+        "peak_fz_late_N": cx.peaks(res, cx.EARLY_MM[geometry])["fz"].tolist(),
+        "oracle_peak_fz_late_N": oracle_late_peaks(c, tab).tolist(),
         "both_walls_frac_in_two_point": [
             float(np.mean(res["both_frac"][w][tp[w]])) if tp[w].any() else None
             for w in range(len(tp))
@@ -305,22 +312,15 @@ def mjx_check(
     }
 
 
-def _check_worlds(geometry: str, k_rot: float, beta0: float) -> dict[str, np.ndarray]:
-    """The worlds of an MJX spot check: the cell's first repeats at L_C = top."""
-    tab = sw.cell_table(cell(k_rot, beta0, geometry), MJX_REPEATS, 0)
-    sel = np.isclose(tab["L_C"], cx.LC_MM[geometry][-1] * MM)
-    return {k: v[sel] for k, v in tab.items()}
-
-
 def c_twin(row: dict) -> dict:
     """The MuJoCo C replica on the same worlds as an MJX spot-check row."""
-    g = row.get("geometry", "rect")
-    tab = _check_worlds(g, row["k_rot_Nm_rad"], row["beta0_deg"])
+    g = row["geometry"]
+    c = cell(row["k_rot_Nm_rad"], row["beta0_deg"], g)
+    tab = top_worlds(c, MJX_REPEATS)
+    cfg = _config(g, row["speed_mm_s"], row["timestep_ms"])
     peaks, both = [], []
     for i in range(len(tab["L_C"])):
         world = {k: float(tab[k][i]) for k in cx.WORLD_KEYS}
-        c = cell(row["k_rot_Nm_rad"], row["beta0_deg"], g)
-        cfg = _config(g, row["speed_mm_s"], row.get("timestep_ms"))
         trace, settle, dt = pull_c(c["preset"], MU, world, row["speed_mm_s"] * MM, cfg)
         s = summarise(trace, settle, dt, cx.EARLY_MM[g])
         peaks.append(s["peak_fz_late_N"])
@@ -329,17 +329,13 @@ def c_twin(row: dict) -> dict:
 
 
 def _check_key(x: dict | tuple) -> tuple:
-    """(geometry, K_theta, beta0, speed, precision, step ms or None) of a check or a row; rows
-    at the experiment's own step and checks without a step compare equal."""
-    if isinstance(x, tuple):
-        return (*x[:5], x[5] if len(x) > 5 else None)
-    step = x.get("timestep_ms")
-    own = cx.TIMESTEP_S[x.get("geometry", "rect")] * 1e3
-    return (
-        x.get("geometry", "rect"),
-        *(x[k] for k in ("k_rot_Nm_rad", "beta0_deg", "speed_mm_s", "precision")),
-        None if step is None or abs(step - own) < 1e-9 else step,
-    )
+    """(geometry, K_theta, beta0, speed, precision, step ms) of a check or a row; a check
+    without a step runs at the experiment's own (``compliance.TIMESTEP_S``)."""
+    if isinstance(x, dict):
+        keys = ("geometry", "k_rot_Nm_rad", "beta0_deg", "speed_mm_s", "precision")
+        return (*(x[k] for k in keys), round(x["timestep_ms"], 6))
+    step = x[5] if len(x) > 5 else cx.TIMESTEP_S[x[0]] * 1e3
+    return (*x[:5], round(step, 6))
 
 
 def run_mjx_checks(out: Path) -> None:
@@ -364,14 +360,11 @@ def run_mjx_checks(out: Path) -> None:
 
 
 def _mjx_one(arg: str, out: Path) -> None:
-    parts = arg.split(",")
-    if len(parts) == 4:  # a rect row in the form without the geometry
-        parts = ["rect", *parts]
-    g, k, b, v, prec, *step = parts
+    g, k, b, v, prec, *step = arg.split(",")
     row = mjx_check(g, float(k), float(b), float(v), prec, float(step[0]) if step else None)
     doc = json.loads(out.read_text()) if out.exists() else {"rows": []}
     doc["rows"].append(row)
-    doc["rows"].sort(key=lambda r: r.get("geometry", "rect") != "rect")
+    doc["rows"].sort(key=lambda r: r["geometry"] != "rect")
     doc.update(engine="MJX-JAX (the experiment), first two repeats at L_C = top", **provenance())
     write_text(out, json.dumps(sw.clean_json(doc), indent=1, allow_nan=False) + "\n")
     print(json.dumps(row))

@@ -461,13 +461,6 @@ def _pull_speed_mechanism(m: dict) -> list[str]:
     return lines
 
 
-def _step_ms(r: dict) -> float:
-    """The physics step of an MJX spot-check row (older rows ran at the experiment's)."""
-    from peghole_mjx.experiments.compliance import TIMESTEP_S
-
-    return r.get("timestep_ms") or TIMESTEP_S[r.get("geometry", "rect")] * 1e3
-
-
 def _pull_speed_mjx(m: dict) -> list[str]:
     """The MJX spot checks beside the MuJoCo C replica on the same worlds (``--mjx``)."""
     lines = [
@@ -481,11 +474,10 @@ def _pull_speed_mjx(m: dict) -> list[str]:
     ]
     for r in m["rows"]:
         pk, orc, both = _per_world(r)
-        preset = f"{r.get('geometry', 'rect')}-2"
         twin = " / ".join(_num(v, ".3f") for v in r.get("c_float64_peak_fz_late_N", []))
         lines.append(
-            f"| {preset} | {r['k_rot_Nm_rad']:g} | {r['beta0_deg']:+g} | {r['speed_mm_s']:g} "
-            f"| {r['precision']}, {_step_ms(r):g} ms | {pk} | {twin or '-'} | {orc} | {both} |"
+            f"| {r['preset']} | {r['k_rot_Nm_rad']:g} | {r['beta0_deg']:+g} | {r['speed_mm_s']:g} "
+            f"| {r['precision']}, {r['timestep_ms']:g} ms | {pk} | {twin or '-'} | {orc} | {both} |"
         )
     return lines
 

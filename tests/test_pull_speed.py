@@ -69,3 +69,17 @@ def test_the_speed_figure_draws_from_the_committed_results(tmp_path):
     rect = json.loads((ps.RESULTS / "pull_speed_rect.json").read_text())
     out = ps.write_figure(rect, None, tmp_path / "f.png")
     assert out.stat().st_size > 10_000
+
+
+def test_every_mjx_check_has_its_committed_row_and_c_twin():
+    doc = json.loads((ps.RESULTS / "pull_speed_mjx.json").read_text())
+    keys = [ps._check_key(r) for r in doc["rows"]]
+    assert sorted(keys) == sorted(ps._check_key(c) for c in ps.MJX_CHECKS)
+    for r in doc["rows"]:
+        c = ps.cell(r["k_rot_Nm_rad"], r["beta0_deg"], r["geometry"])
+        assert r["preset"] == c["preset"]
+        assert len(r["c_float64_peak_fz_late_N"]) == len(r["peak_fz_late_N"]) == ps.MJX_REPEATS
+        # the oracle column is the oracle of the very worlds the check pulls
+        np.testing.assert_allclose(
+            ps.oracle_late_peaks(c, ps.top_worlds(c, ps.MJX_REPEATS)), r["oracle_peak_fz_late_N"]
+        )
