@@ -5,6 +5,14 @@ precision, per-step traces or slow pulls at low cost: the same scene (``compile_
 the experiment's simulator options and collision representation), the NumPy twin of the
 impedance law (:func:`peghole_mjx.control.reference.impedance_torque`), the same rest pose,
 ramp and pull. Used by :mod:`benchmarks.contact_diagnosis` and :mod:`benchmarks.pull_speed`.
+
+MuJoCo C's multi-point CCD (on by default in MuJoCo 4) is off in every compiled scene
+(``geometry.mjcf._set_options``): MJX collides convex meshes with its own routine, and with
+multi-point CCD on the replica does not reproduce it on the dual meshes (two dual-2 worlds,
+K_theta 3 N m/rad, beta0 -0.2 deg, L_C = top, 0.5 mm/s: late peaks 0.121 / 0.112 N with it,
+0.168 / 0.177 N without; MJX float64 0.167 / 0.176 N, the quasi-static oracle 0.167 / 0.176 N;
+2026-11-29). The rect scenes (boxes, edge capsules) do not use CCD: their traces are
+identical either way.
 """
 
 from __future__ import annotations
@@ -23,6 +31,8 @@ from peghole_mjx.geometry.specs import MM, PRESETS
 
 #: trace columns of :func:`pull_c`, one row per physics step
 COLUMNS = ("depth", "f_plus", "f_minus", "penetration", "f_tangential", "f_normal", "fz")
+#: what the replica is, stored beside its results so that a result of another replica is redone
+ENGINE = "MuJoCo C, float64, multi-point CCD off, NumPy impedance law"
 
 
 def pull_c(

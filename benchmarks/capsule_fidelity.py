@@ -20,14 +20,16 @@ mesh scene of ``build_scene(robot=False)``): the peg moves in the oracle's x-z p
 slide along x, a slide along z, a hinge about y instead of the free joint), no gravity, the
 compliance springs at the compliance centre applied as a body wrench every step, the depth
 prescribed by a stiff z servo pulling out at 2 mm/s from 48 mm (timestep 0.1 ms for the
-explicit 300 N m/rad spring; joint damping for quasi-static motion). At each compared depth
+explicit 300 N m/rad spring; joint damping for quasi-static motion; Coulomb frictional rows,
+MuJoCo C's multi-point CCD off as MJX has none). At each compared depth
 the contact normal forces are summed per oracle contact (peg, mouth or tip, side) and the
 extraction force F_z read from the constraint force on the z slide; each is compared with the
-oracle's lambda and F_z (relative difference).
+oracle's lambda and F_z (relative difference). ``jam_envs_friction``: the same with the envs'
+relaxed frictional rows (``SimOptions.friction_timeconst``).
 
 Run ``python -m benchmarks.capsule_fidelity baseline`` (about 5 minutes on 2 CPU cores) and
-``python -m benchmarks.capsule_fidelity jam``; each writes its part of
-``benchmarks/results/capsule_fidelity.json``.
+``python -m benchmarks.capsule_fidelity jam`` (``jam_envs_friction``, ``jam_mjx``, ``profile``);
+each writes its part of ``benchmarks/results/capsule_fidelity.json``.
 """
 
 from __future__ import annotations
@@ -137,15 +139,23 @@ def baseline(episodes: int, batch: int) -> dict:
 JAM_DEPTHS_MM = (20.0, 25.0, 30.0, 35.0, 40.0)
 
 
-def _planar_model(spec, rep: str, h0_mm: float, timestep: float):
-    """The free-peg scene with the peg in the x-z plane: slide x, slide z, hinge y."""
+def _planar_model(
+    spec, rep: str, h0_mm: float, timestep: float, friction_timeconst: float | None = None
+):
+    """The free-peg scene with the peg in the x-z plane: slide x, slide z, hinge y.
+
+    ``friction_timeconst``: the frictional rows' time constant (s; None: Coulomb rows as stiff
+    as the normal one, MuJoCo's default). MuJoCo C's multi-point CCD is off, as in every scene
+    (``geometry.mjcf._set_options``): with it on, C's mesh-mesh contact at the mouth edge reads
+    F_z 37-105 % above the oracle; off, +3 to +4 % (2026-11-29)."""
     import mujoco
 
     from peghole_mjx.geometry.mjcf import SimOptions, block_top_z, build_scene
     from peghole_mjx.geometry.parts import peg_tip_z_m
     from peghole_mjx.geometry.specs import MM
 
-    s = build_scene(spec, robot=False, representation=rep, contact_cap=0, sim=SimOptions(timestep))
+    sim = SimOptions(timestep, friction_timeconst=friction_timeconst)
+    s = build_scene(spec, robot=False, representation=rep, contact_cap=0, sim=sim)
     s.delete(s.joint("peg_free"))
     s.delete(s.key("mouth"))
     s.option.gravity = [0.0, 0.0, 0.0]
@@ -172,9 +182,14 @@ def _planar_model(spec, rep: str, h0_mm: float, timestep: float):
 
 
 def jam(
-    speed_mm_s: float = 2.0, h0_mm: float = 48.0, timestep: float = 1e-4, settle_s: float = 0.3
+    speed_mm_s: float = 2.0,
+    h0_mm: float = 48.0,
+    timestep: float = 1e-4,
+    settle_s: float = 0.3,
+    friction_timeconst: float | None = None,
 ) -> dict:
-    """Contact forces of the jammed dual configuration: capsule and mesh vs the oracle."""
+    """Contact forces of the jammed dual configuration: capsule and mesh vs the oracle
+    (``friction_timeconst``: see :func:`_planar_model`)."""
     import mujoco
 
     from peghole_mjx.analysis import dual, oracle
@@ -210,11 +225,14 @@ def jam(
             "pull_speed_mm_s": speed_mm_s,
             "start_depth_mm": h0_mm,
             "settle_s": settle_s,
+            "friction_timeconst_s": friction_timeconst,
         },
     }
     names = sol.names
     for rep in ("capsule", "mesh"):
-        m = _planar_model(spec, rep, h0_mm, timestep)
+        m = _planar_model(spec, rep, h0_mm, timestep, friction_timeconst)
+        ccd = not m.opt.disableflags & mujoco.mjtDisableBit.mjDSBL_MULTICCD
+        out["harness"]["multiccd"] = bool(ccd)
         d = mujoco.MjData(m)
         mujoco.mj_forward(m, d)
         peg, tip_site = m.body("peg").id, m.site("peg_tip").id
@@ -357,7 +375,12 @@ def jam_mjx(
     )
     out: dict = {
         "engine": "mjx-jax (CPU)",
-        "harness": {"timestep_s": timestep, "pull_speed_mm_s": speed_mm_s, "start_depth_mm": h0_mm},
+        "harness": {
+            "timestep_s": timestep,
+            "pull_speed_mm_s": speed_mm_s,
+            "start_depth_mm": h0_mm,
+            "friction_timeconst_s": None,
+        },
         "oracle": {
             f"{h:g}": {
                 "F_z_N": round(float(sol.F_z[i]), 4),
@@ -506,7 +529,12 @@ def profile(episodes: int = 32, seed: int = 0) -> dict:
 
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    ap.add_argument("part", choices=("baseline", "jam", "jam_mjx", "profile", "diagnose"))
+    ap.add_argument(
+        "part",
+        choices=("baseline", "jam", "jam_envs_friction", "jam_mjx", "profile", "diagnose"),
+        help="jam_envs_friction: the jam with the envs' relaxed frictional rows "
+        "(SimOptions.friction_timeconst) instead of Coulomb rows",
+    )
     ap.add_argument("--episodes", type=int, default=256)
     ap.add_argument("--batch", type=int, default=256)
     ap.add_argument("--note", default="")
@@ -527,6 +555,10 @@ def main(argv: list[str] | None = None) -> int:
         part = profile()
     elif args.part == "jam_mjx":
         part = jam_mjx()
+    elif args.part == "jam_envs_friction":
+        from peghole_mjx.geometry.mjcf import SimOptions
+
+        part = jam(friction_timeconst=SimOptions().friction_timeconst)
     else:
         part = jam()
     data[args.part] = {**provenance(), "note": args.note, **part}

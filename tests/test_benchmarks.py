@@ -511,8 +511,9 @@ def test_scene_variants_name_a_representation():
 
 def test_jammed_dual_contact_forces_match_the_oracle(monkeypatch):
     """Two-point jam of the dual peg (benchmarks/capsule_fidelity.py jam, one depth, a faster
-    pull): the capsule and mesh scenes' mouth and tip contact forces are within 10 % of the
-    quasi-static oracle's, and the capsule's extraction force too (MuJoCo C, a few seconds)."""
+    pull): the capsule and mesh scenes' mouth and tip contact forces and extraction forces are
+    within 10 % of the quasi-static oracle's (MuJoCo C, a few seconds). The mesh's F_z holds
+    only with MuJoCo C's multi-point CCD off (on: +37 to +105 %)."""
     from benchmarks import capsule_fidelity
 
     monkeypatch.setattr(capsule_fidelity, "JAM_DEPTHS_MM", (25.0,))
@@ -521,6 +522,5 @@ def test_jammed_dual_contact_forces_match_the_oracle(monkeypatch):
     assert set(out["oracle"]["25"]["contacts_N"]) == {"H2R-corner/P2", "P2L-tip/H2"}
     for rep in ("capsule", "mesh"):
         for name, v in rel[rep].items():
-            if name != "F_z":
-                assert abs(v) < 0.10, (rep, name, v)
-    assert abs(rel["capsule"]["F_z"]) < 0.10
+            assert abs(v) < 0.10, (rep, name, v)
+    assert out["harness"]["friction_timeconst_s"] is None and not out["harness"]["multiccd"]

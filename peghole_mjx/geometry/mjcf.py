@@ -60,6 +60,10 @@ class SimOptions:
     loaded in >= 94 % of physics steps in two-point windows, per-step peak ~1x the 20 ms mean)
     while a sliding contact still carries mu * N (measured mu_eff 0.26 at mu 0.266). Evidence:
     ``peghole models contact-check`` (benchmarks/results/contact_check.json, docs/contact.md).
+    Slow slides under large normal forces get less than mu * N: the arm-held peg of the
+    compliance experiment keeps mu_eff 0.26 down to 0.5 mm/s (benchmarks/pull_speed.py), a free
+    peg jammed under 80-95 N normal forces at mu 0.01 sliding at 2 mm/s carries 15-39 % less F_z
+    than Coulomb rows (``benchmarks/capsule_fidelity.py jam_envs_friction``, docs/models.md).
     ``None``: the frictional rows use ``solref`` (MuJoCo's default).
     """
 
@@ -103,6 +107,15 @@ def _set_options(s: mujoco.MjSpec, sim: SimOptions) -> None:
         "elliptic": mujoco.mjtCone.mjCONE_ELLIPTIC,
     }[sim.cone]
     s.option.disableflags |= mujoco.mjtDisableBit.mjDSBL_EULERDAMP
+    # MuJoCo C's multi-point CCD (on by default in MuJoCo 4; MJX-JAX collides meshes with its
+    # own routine, MuJoCo Warp follows the flag) makes C's mesh-mesh contacts depart from
+    # MJX-JAX and the quasi-static oracle: a jammed dual peg's F_z +37 % to +105 % (off: +3 to
+    # +4 %), the dual compliance pull's late peak at L_C = top 0.12 N (off: 0.17 N = MJX =
+    # oracle). The price: off, C returns one contact per mesh pair, so a face resting on a
+    # face sinks a little deeper (the dual mesh drop test's gap -3.5 to -12 um, on -0.2 um;
+    # MJX-JAX -1.2 um). Box and capsule pairs do not use CCD. Evidence: docs/models.md
+    # (capsule fidelity), benchmarks/results/models_check.json, 2026-11-29.
+    s.option.disableflags |= mujoco.mjtDisableBit.mjDSBL_MULTICCD
     s.compiler.autolimits = True
 
 
@@ -236,8 +249,10 @@ CONTACT_CAPS: dict[tuple[str, str], ContactCap] = {
     ("rect", "box"): ContactCap(measured_max=20, cap=0),
     # the edge model allocates 2 contacts per capsule-box pair (28 pairs; not yet measured)
     ("rect", "edges"): ContactCap(measured_max=0, cap=0),
-    ("dual", "capsule"): ContactCap(measured_max=22, cap=32),
-    ("dual", "mesh"): ContactCap(measured_max=47, cap=0),  # of 136 allocated (MuJoCo C, random)
+    # benchmarks/results/contact_caps.json, 2026-11-29 (the current contact settings; MuJoCo
+    # C's multi-point CCD off): capsule 20 of 68 allocated, mesh 38 of 136 (MJX-JAX, random)
+    ("dual", "capsule"): ContactCap(measured_max=20, cap=32),
+    ("dual", "mesh"): ContactCap(measured_max=38, cap=0),
 }
 
 
