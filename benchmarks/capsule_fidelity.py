@@ -50,6 +50,8 @@ ROOT = HERE.parent
 from benchmarks.bench_common import RESULTS  # noqa: E402
 
 MESH_EPISODES = RESULTS / "dual_ffdeploy_cpu-2core" / "episodes1024.csv"
+#: pull speeds of ``jam_envs_friction`` (mm/s): the jam's own, and the scripted method's 20
+ENVS_FRICTION_SPEEDS_MM_S = (2.0, 5.0, 20.0)
 OUT = RESULTS / "capsule_fidelity.json"
 METRICS = ("mean_fz_N", "peak_fz_N", "extraction_time_s")
 
@@ -558,7 +560,20 @@ def main(argv: list[str] | None = None) -> int:
     elif args.part == "jam_envs_friction":
         from peghole_mjx.geometry.mjcf import SimOptions
 
-        part = jam(friction_timeconst=SimOptions().friction_timeconst)
+        ftc = SimOptions().friction_timeconst
+        part = jam(friction_timeconst=ftc)
+        # the same jam pulled faster: where the relaxed rows carry the oracle's friction again
+        part["F_z_relative_difference_by_speed_mm_s"] = {
+            f"{v:g}": {
+                rep: {h: row[rep]["F_z"] for h, row in rel.items()} for rep in ("capsule", "mesh")
+            }
+            for v in ENVS_FRICTION_SPEEDS_MM_S
+            for rel in [
+                part["relative_difference"]
+                if v == part["harness"]["pull_speed_mm_s"]
+                else jam(speed_mm_s=v, friction_timeconst=ftc)["relative_difference"]
+            ]
+        }
     else:
         part = jam()
     data[args.part] = {**provenance(), "note": args.note, **part}

@@ -144,10 +144,14 @@ def oracle_late_peaks(c: dict, tab: dict[str, np.ndarray]) -> np.ndarray:
     return cx.quasi_static_peaks(qs, h0, cx.EARLY_MM[g])
 
 
-def top_worlds(c: dict, repeats: int) -> dict[str, np.ndarray]:
-    """The worlds of cell ``c`` (``repeats`` draws) with L_C at the top of the peg."""
+#: where the compliance centre sits: index into ``compliance.LC_MM[geometry]``
+AT = {"tip": 0, "centre": 1, "top": -1}
+
+
+def worlds_at(c: dict, repeats: int, at: str = "top") -> dict[str, np.ndarray]:
+    """The worlds of cell ``c`` (``repeats`` draws) with L_C at ``at`` (:data:`AT`)."""
     tab = sw.cell_table(c, repeats, 0)
-    sel = np.isclose(tab["L_C"], cx.LC_MM[_geometry(c)][-1] * MM)
+    sel = np.isclose(tab["L_C"], cx.LC_MM[_geometry(c)][AT[at]] * MM)
     return {k: v[sel] for k, v in tab.items()}
 
 
@@ -241,7 +245,7 @@ def mechanism_row(name: str) -> dict:
 
     v, zeta, tcf, dr = MECHANISM[name]
     c = cell(3.0, -0.2)
-    tab = {k: a[:1] for k, a in top_worlds(c, REPEATS).items()}  # the first repeat
+    tab = {k: a[:1] for k, a in worlds_at(c, REPEATS).items()}  # the first repeat
     world = {k: float(tab[k][0]) for k in cx.WORLD_KEYS}
     cfg = cx.ExperimentConfig(geometry="rect")
     sim = cfg.sim_options()
@@ -264,9 +268,10 @@ def mechanism_row(name: str) -> dict:
     }
 
 
-#: MJX spot checks (geometry, K_theta, beta0, speed mm/s, precision[, physics step ms]): the
-#: sweep's first two repeats at L_C = top, to show that MJX agrees with the MuJoCo C replica;
-#: the rows with a step are float32 at the envs' 2 ms step (the experiment's rect step is 1 ms)
+#: MJX spot checks (geometry, K_theta, beta0, speed mm/s, precision[, physics step ms or None
+#: for the experiment's[, L_C: a key of :data:`AT`, default top]]): the sweep's first two
+#: repeats at that L_C, to show that MJX agrees with the MuJoCo C replica; the rows with a
+#: step are float32 at the envs' 2 ms step (the experiment's rect step is 1 ms)
 MJX_CHECKS = (
     ("rect", 3.0, -0.2, 20.0, "float64"),
     ("rect", 3.0, -0.2, 2.0, "float64"),
@@ -277,6 +282,14 @@ MJX_CHECKS = (
     ("dual", 3.0, -0.2, 0.5, "float64"),
     ("rect", 300.0, -0.2, 2.0, "float32", 2.0),
     ("rect", 300.0, -0.2, 1.0, "float32", 2.0),
+    # the slow cells where the replica stays off the oracle, at every L_C (rect: the tip 1.4x
+    # the oracle's at 2 and 1 mm/s; dual: the tip 1.25x at 0.5 mm/s); added 2026-11-29 after
+    # those results: the same two worlds per L_C give MJX's own paired reductions
+    ("rect", 3.0, 0.2, 2.0, "float64", None, "tip"),
+    ("dual", 3.0, -0.2, 0.5, "float64", None, "tip"),
+    ("rect", 3.0, 0.2, 2.0, "float64", None, "centre"),
+    ("rect", 3.0, 0.2, 2.0, "float64", None, "top"),
+    ("dual", 3.0, -0.2, 0.5, "float64", None, "centre"),
 )
 MJX_REPEATS = 2
 
@@ -299,16 +312,17 @@ def mjx_check(
     speed_mm_s: float,
     precision: str,
     step_ms: float | None = None,
+    at: str = "top",
 ) -> dict:
     """The experiment itself (:class:`~peghole_mjx.experiments.compliance.Extraction`, MJX)
-    on the first :data:`MJX_REPEATS` worlds of the cell at L_C = top. Run it in a fresh
-    process: float64 is a process-wide JAX flag."""
+    on the first :data:`MJX_REPEATS` worlds of the cell with L_C at ``at``. Run it in a
+    fresh process: float64 is a process-wide JAX flag."""
     import jax
 
     jax.config.update("jax_enable_x64", precision == "float64")
     c = cell(k_rot, beta0, geometry)
     cfg = _config(geometry, speed_mm_s, step_ms)
-    tab = top_worlds(c, MJX_REPEATS)
+    tab = worlds_at(c, MJX_REPEATS, at)
     t0 = time.perf_counter()
     res = cx.Extraction(c["preset"], cfg, mu=MU).run(progress=False, table=tab)
     tp = res["two_point"]
@@ -320,7 +334,7 @@ def mjx_check(
         "speed_mm_s": speed_mm_s,
         "precision": precision,
         "timestep_ms": cfg.sim_options().timestep * 1e3,
-        "L_C_mm": cx.LC_MM[geometry][-1],
+        "L_C_mm": cx.LC_MM[geometry][AT[at]],
         "peak_fz_late_N": cx.peaks(res, cx.EARLY_MM[geometry])["fz"].tolist(),
         "oracle_peak_fz_late_N": oracle_late_peaks(c, tab).tolist(),
         "both_walls_frac_in_two_point": [
@@ -336,7 +350,7 @@ def c_twin(row: dict) -> dict:
     """The MuJoCo C replica on the same worlds as an MJX spot-check row."""
     g = row["geometry"]
     c = cell(row["k_rot_Nm_rad"], row["beta0_deg"], g)
-    tab = top_worlds(c, MJX_REPEATS)
+    tab = worlds_at(c, MJX_REPEATS, _at(row))
     cfg = _config(g, row["speed_mm_s"], row["timestep_ms"])
     peaks, both = [], []
     for i in range(len(tab["L_C"])):
@@ -352,14 +366,21 @@ def c_twin(row: dict) -> dict:
     }
 
 
+def _at(row: dict) -> str:
+    """The :data:`AT` key of a committed row's L_C."""
+    lcs = cx.LC_MM[row["geometry"]]
+    return next(k for k, i in AT.items() if np.isclose(lcs[i], row["L_C_mm"]))
+
+
 def _check_key(x: dict | tuple) -> tuple:
-    """(geometry, K_theta, beta0, speed, precision, step ms) of a check or a row; a check
-    without a step runs at the experiment's own (``compliance.TIMESTEP_S``)."""
+    """(geometry, K_theta, beta0, speed, precision, step ms, L_C) of a check or a row; a check
+    without a step runs at the experiment's own (``compliance.TIMESTEP_S``), without an L_C at
+    the top."""
     if isinstance(x, dict):
         keys = ("geometry", "k_rot_Nm_rad", "beta0_deg", "speed_mm_s", "precision")
-        return (*(x[k] for k in keys), round(x["timestep_ms"], 6))
-    step = x[5] if len(x) > 5 else cx.TIMESTEP_S[x[0]] * 1e3
-    return (*x[:5], round(step, 6))
+        return (*(x[k] for k in keys), round(x["timestep_ms"], 6), _at(x))
+    step = x[5] if len(x) > 5 and x[5] is not None else cx.TIMESTEP_S[x[0]] * 1e3
+    return (*x[:5], round(step, 6), x[6] if len(x) > 6 else "top")
 
 
 def run_mjx_checks(out: Path) -> None:
@@ -384,12 +405,14 @@ def run_mjx_checks(out: Path) -> None:
 
 
 def _mjx_one(arg: str, out: Path) -> None:
-    g, k, b, v, prec, *step = arg.split(",")
-    row = mjx_check(g, float(k), float(b), float(v), prec, float(step[0]) if step else None)
+    g, k, b, v, prec, *rest = arg.split(",")
+    step = float(rest[0]) if rest and rest[0] != "None" else None
+    at = rest[1] if len(rest) > 1 else "top"
+    row = mjx_check(g, float(k), float(b), float(v), prec, step, at)
     doc = json.loads(out.read_text()) if out.exists() else {"rows": []}
     doc["rows"].append(row)
     doc["rows"].sort(key=lambda r: r["geometry"] != "rect")
-    doc.update(engine="MJX-JAX (the experiment), first two repeats at L_C = top", **provenance())
+    doc.update(engine="MJX-JAX (the experiment), the first two repeats", **provenance())
     write_text(out, json.dumps(sw.clean_json(doc), indent=1, allow_nan=False) + "\n")
     print(json.dumps(row))
 

@@ -15,6 +15,8 @@ import re
 import sys
 from pathlib import Path
 
+import numpy as np
+
 ROOT = Path(__file__).resolve().parents[1]
 RESULTS = ROOT / "benchmarks" / "results"
 
@@ -465,21 +467,43 @@ def _pull_speed_mechanism(m: dict) -> list[str]:
 def _pull_speed_mjx(m: dict) -> list[str]:
     """The MJX spot checks beside the MuJoCo C replica on the same worlds (``--mjx``)."""
     lines = [
-        f"The experiment itself (MJX-JAX), the first two repeats at L_C = top; {m['device']}, "
+        f"The experiment itself (MJX-JAX), the first two repeats at one L_C; {m['device']}, "
         f"{m['date'][:10]}:",
         "",
-        "| preset | K_theta N m/rad | beta0 deg | pull mm/s | MJX precision, step | MJX late peak "
-        "F_z N (per world) | MuJoCo C float64, same worlds | oracle N | MJX both walls "
-        "loaded |",
-        "|---|---|---|---|---|---|---|---|---|",
+        "| preset | K_theta N m/rad | beta0 deg | L_C mm | pull mm/s | MJX precision, step | MJX "
+        "late peak F_z N (per world) | MuJoCo C float64, same worlds | oracle N | MJX both "
+        "walls loaded |",
+        "|---|---|---|---|---|---|---|---|---|---|",
     ]
     for r in m["rows"]:
         pk, orc, both = _per_world(r)
         twin = " / ".join(_num(v, ".3f") for v in r.get("c_float64_peak_fz_late_N", []))
         lines.append(
-            f"| {r['preset']} | {r['k_rot_Nm_rad']:g} | {r['beta0_deg']:+g} | {r['speed_mm_s']:g} "
+            f"| {r['preset']} | {r['k_rot_Nm_rad']:g} | {r['beta0_deg']:+g} | {r['L_C_mm']:g} "
+            f"| {r['speed_mm_s']:g} "
             f"| {r['precision']}, {r['timestep_ms']:g} ms | {pk} | {twin or '-'} | {orc} | {both} |"
         )
+    # where a check ran at every L_C: the reductions of those two worlds per L_C (paired draws)
+    by_check: dict[tuple, dict[float, dict]] = {}
+    for r in m["rows"]:
+        key = tuple(r[k] for k in ("preset", "k_rot_Nm_rad", "beta0_deg", "speed_mm_s",
+                                   "precision", "timestep_ms"))  # fmt: skip
+        by_check.setdefault(key, {})[r["L_C_mm"]] = r
+    for key, rows in by_check.items():
+        if len(rows) < 3:
+            continue
+        tip, centre, top = (rows[lc] for lc in sorted(rows))
+        red = {}
+        for col in ("peak_fz_late_N", "c_float64_peak_fz_late_N", "oracle_peak_fz_late_N"):
+            t, c_, o = (float(np.mean(x[col])) for x in (tip, centre, top))
+            red[col] = f"{100 * (1 - t / o):.1f} % / {100 * (1 - t / c_):.1f} %"
+        lines += [
+            "",
+            f"{key[0]}, K_theta {key[1]:g} N m/rad, beta0 {key[2]:+g} deg, {key[3]:g} mm/s, "
+            f"those two worlds at every L_C, tip vs top / tip vs centre (mean peaks): MJX "
+            f"{red['peak_fz_late_N']}, MuJoCo C replica {red['c_float64_peak_fz_late_N']}, "
+            f"oracle {red['oracle_peak_fz_late_N']}.",
+        ]
     return lines
 
 

@@ -31,7 +31,7 @@ def test_c_replica_meets_the_oracle_on_the_dual_meshes_when_slow():
     peak within 5 % of the oracle's (0.168 vs 0.167 N; MJX float64 0.167 N). With MuJoCo C's
     multi-point CCD on (its default) the replica read 0.121 N."""
     c = ps.cell(3.0, -0.2, "dual")
-    tab = ps.top_worlds(c, 1)
+    tab = ps.worlds_at(c, 1)
     world = {k: float(tab[k][0]) for k in cx.WORLD_KEYS}
     cfg = ps._config("dual", 0.5, None)
     trace, settle, dt = pull_c(c["preset"], ps.MU, world, 0.5e-3, cfg)
@@ -107,5 +107,6 @@ def test_every_mjx_check_has_its_committed_row_and_c_twin():
         assert r["c_engine"] == ENGINE  # the twin of the replica as it is now
         # the oracle column is the oracle of the very worlds the check pulls
         np.testing.assert_allclose(
-            ps.oracle_late_peaks(c, ps.top_worlds(c, ps.MJX_REPEATS)), r["oracle_peak_fz_late_N"]
+            ps.oracle_late_peaks(c, ps.worlds_at(c, ps.MJX_REPEATS, ps._at(r))),
+            r["oracle_peak_fz_late_N"],
         )

@@ -63,7 +63,8 @@ class SimOptions:
     Slow slides under large normal forces get less than mu * N: the arm-held peg of the
     compliance experiment keeps mu_eff 0.26 down to 0.5 mm/s (benchmarks/pull_speed.py), a free
     peg jammed under 80-95 N normal forces at mu 0.01 sliding at 2 mm/s carries 15-39 % less F_z
-    than Coulomb rows (``benchmarks/capsule_fidelity.py jam_envs_friction``, docs/models.md).
+    than Coulomb rows, and as much at 5 and 20 mm/s (``benchmarks/capsule_fidelity.py
+    jam_envs_friction``, docs/models.md).
     ``None``: the frictional rows use ``solref`` (MuJoCo's default).
     """
 
