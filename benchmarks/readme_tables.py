@@ -351,7 +351,7 @@ def _sweep_rows(d: dict) -> list[str]:
     return out
 
 
-def _sweep_table(suffix: str) -> str:
+def _sweep_table(suffix: str, pattern: str = "compliance_sweep_{{geom}}{suffix}.json") -> str:
     head = [
         "| preset | K_theta N m/rad | beta0 deg | mu | K_lat L_C,top^2 / K_theta | "
         "mean peak F_z N: tip / centre / top | tip vs top % [95 % CI] (R1: 77.1) | oracle | "
@@ -360,11 +360,14 @@ def _sweep_table(suffix: str) -> str:
     ]
     lines = list(head)
     notes = []
-    for d in _per_geometry(f"compliance_sweep_{{geom}}{suffix}.json"):
+    for d in _per_geometry(pattern.format(suffix=suffix)):
         lines += _sweep_rows(d)
+        x = d["settings"]
         notes.append(
-            f"{d['geometry']}: {sum(c['n_worlds'] for c in d['cells'])} worlds, {d['device']}, "
-            f"{d['date'][:10]}, {d['runtime_s'] / 60:.0f} min in the invocation that wrote the file"
+            f"{d['geometry']}: {sum(c['n_worlds'] for c in d['cells'])} worlds, "
+            f"{x['experiment']['speed_m_s'] * 1e3:g} mm/s, {x.get('precision', 'float32')}, "
+            f"{d['device']}, {d['date'][:10]}, {d['runtime_s'] / 60:.0f} min in the invocation "
+            "that wrote the file"
         )
     return "\n".join([*lines, "", "Runs: " + "; ".join(notes) + "."])
 
@@ -372,6 +375,12 @@ def _sweep_table(suffix: str) -> str:
 def compliance_sweep() -> str:
     """The regime sweep: simulated reductions (95 % CI) beside the quasi-static oracle's."""
     return _sweep_table("")
+
+
+def compliance_sweep_quasi_static() -> str:
+    """Sweep cells run at a slow pull in float64 (``--speed-mm-s ... --x64``), from
+    ``benchmarks/results/quasi_static/``."""
+    return _sweep_table("", "quasi_static/compliance_sweep_{{geom}}.json")
 
 
 def compliance_sweep_envs_law() -> str:
@@ -929,6 +938,7 @@ TABLES = {
     "compliance_sweep": compliance_sweep,
     "compliance_findings": compliance_findings,
     "compliance_sweep_envs_law": compliance_sweep_envs_law,
+    "compliance_sweep_quasi_static": compliance_sweep_quasi_static,
     "low_stiffness_check": low_stiffness_check,
     "pull_speed": pull_speed,
     "throughput": throughput,
@@ -952,6 +962,7 @@ TABLE_FILES = {
     "compliance_sweep": "docs/compliance.md",
     "compliance_findings": "docs/compliance.md",
     "compliance_sweep_envs_law": "docs/compliance.md",
+    "compliance_sweep_quasi_static": "docs/compliance.md",
     "low_stiffness_check": "docs/compliance.md",
     "pull_speed": "docs/compliance.md",
     "env_rollouts": "docs/envs.md",
