@@ -21,7 +21,7 @@ slide along x, a slide along z, a hinge about y instead of the free joint), no g
 compliance springs at the compliance centre applied as a body wrench every step, the depth
 prescribed by a stiff z servo pulling out at 2 mm/s from 48 mm (timestep 0.1 ms for the
 explicit 300 N m/rad spring; joint damping for quasi-static motion; Coulomb frictional rows,
-MuJoCo C's multi-point CCD off as MJX has none). At each compared depth
+MuJoCo C's multi-point CCD off as in every scene). At each compared depth
 the contact normal forces are summed per oracle contact (peg, mouth or tip, side) and the
 extraction force F_z read from the constraint force on the z slide; each is compared with the
 oracle's lambda and F_z (relative difference). ``jam_envs_friction``: the same with the envs'
@@ -563,17 +563,14 @@ def main(argv: list[str] | None = None) -> int:
         ftc = SimOptions().friction_timeconst
         part = jam(friction_timeconst=ftc)
         # the same jam pulled faster: where the relaxed rows carry the oracle's friction again
-        part["F_z_relative_difference_by_speed_mm_s"] = {
-            f"{v:g}": {
+        by_speed = {}
+        for v in ENVS_FRICTION_SPEEDS_MM_S:
+            same = v == part["harness"]["pull_speed_mm_s"]
+            rel = (part if same else jam(v, friction_timeconst=ftc))["relative_difference"]
+            by_speed[f"{v:g}"] = {
                 rep: {h: row[rep]["F_z"] for h, row in rel.items()} for rep in ("capsule", "mesh")
             }
-            for v in ENVS_FRICTION_SPEEDS_MM_S
-            for rel in [
-                part["relative_difference"]
-                if v == part["harness"]["pull_speed_mm_s"]
-                else jam(speed_mm_s=v, friction_timeconst=ftc)["relative_difference"]
-            ]
-        }
+        part["F_z_relative_difference_by_speed_mm_s"] = by_speed
     else:
         part = jam()
     data[args.part] = {**provenance(), "note": args.note, **part}

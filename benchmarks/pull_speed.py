@@ -155,6 +155,11 @@ def worlds_at(c: dict, repeats: int, at: str = "top") -> dict[str, np.ndarray]:
     return {k: v[sel] for k, v in tab.items()}
 
 
+def world(tab: dict[str, np.ndarray], i: int) -> dict[str, float]:
+    """World ``i`` of a cell table, as the replica takes it (SI, rad)."""
+    return {k: float(tab[k][i]) for k in cx.WORLD_KEYS}
+
+
 def _job(args: tuple) -> dict:
     key, c, speed_mm_s, world, oracle = args
     t0 = time.perf_counter()
@@ -172,9 +177,9 @@ def jobs(cells: list[dict], speeds: tuple[float, ...], repeats: int, seed: int) 
         orc = oracle_late_peaks(c, tab)
         for v in speeds:
             for i in range(len(tab["L_C"])):
-                world = {k: float(tab[k][i]) for k in cx.WORLD_KEYS}
-                key = json.dumps([c["k_rot_Nm_rad"], c["beta0_deg"], v, world["L_C"], i % repeats])
-                out.append((key, c, v, world, float(orc[i])))
+                w = world(tab, i)
+                key = json.dumps([c["k_rot_Nm_rad"], c["beta0_deg"], v, w["L_C"], i % repeats])
+                out.append((key, c, v, w, float(orc[i])))
     return out
 
 
@@ -246,7 +251,6 @@ def mechanism_row(name: str) -> dict:
     v, zeta, tcf, dr = MECHANISM[name]
     c = cell(3.0, -0.2)
     tab = {k: a[:1] for k, a in worlds_at(c, REPEATS).items()}  # the first repeat
-    world = {k: float(tab[k][0]) for k in cx.WORLD_KEYS}
     cfg = cx.ExperimentConfig(geometry="rect")
     sim = cfg.sim_options()
     if tcf is not None:
@@ -255,7 +259,7 @@ def mechanism_row(name: str) -> dict:
         sim = dataclasses.replace(sim, contact_dampratio=dr)
     cfg = dataclasses.replace(cfg, sim=sim)
     t0 = time.perf_counter()
-    trace, settle, dt = pull_c(c["preset"], MU, world, v * MM, cfg, damping_ratio=zeta)
+    trace, settle, dt = pull_c(c["preset"], MU, world(tab, 0), v * MM, cfg, damping_ratio=zeta)
     return {
         "variant": name,
         "speed_mm_s": v,
@@ -354,8 +358,7 @@ def c_twin(row: dict) -> dict:
     cfg = _config(g, row["speed_mm_s"], row["timestep_ms"])
     peaks, both = [], []
     for i in range(len(tab["L_C"])):
-        world = {k: float(tab[k][i]) for k in cx.WORLD_KEYS}
-        trace, settle, dt = pull_c(c["preset"], MU, world, row["speed_mm_s"] * MM, cfg)
+        trace, settle, dt = pull_c(c["preset"], MU, world(tab, i), row["speed_mm_s"] * MM, cfg)
         s = summarise(trace, settle, dt, cx.EARLY_MM[g])
         peaks.append(s["peak_fz_late_N"])
         both.append(s["both_walls_frac_in_two_point"])

@@ -15,8 +15,6 @@ import re
 import sys
 from pathlib import Path
 
-import numpy as np
-
 ROOT = Path(__file__).resolve().parents[1]
 RESULTS = ROOT / "benchmarks" / "results"
 
@@ -351,7 +349,8 @@ def _sweep_rows(d: dict) -> list[str]:
     return out
 
 
-def _sweep_table(suffix: str, pattern: str = "compliance_sweep_{{geom}}{suffix}.json") -> str:
+def _sweep_table(pattern: str) -> str:
+    """The sweep table of the result files ``pattern`` (with ``{geom}``) under results/."""
     head = [
         "| preset | K_theta N m/rad | beta0 deg | mu | K_lat L_C,top^2 / K_theta | "
         "mean peak F_z N: tip / centre / top | tip vs top % [95 % CI] (R1: 77.1) | oracle | "
@@ -360,7 +359,7 @@ def _sweep_table(suffix: str, pattern: str = "compliance_sweep_{{geom}}{suffix}.
     ]
     lines = list(head)
     notes = []
-    for d in _per_geometry(pattern.format(suffix=suffix)):
+    for d in _per_geometry(pattern):
         lines += _sweep_rows(d)
         x = d["settings"]
         notes.append(
@@ -374,19 +373,19 @@ def _sweep_table(suffix: str, pattern: str = "compliance_sweep_{{geom}}{suffix}.
 
 def compliance_sweep() -> str:
     """The regime sweep: simulated reductions (95 % CI) beside the quasi-static oracle's."""
-    return _sweep_table("")
+    return _sweep_table("compliance_sweep_{geom}.json")
 
 
 def compliance_sweep_quasi_static() -> str:
     """Sweep cells run at a slow pull in float64 (``--speed-mm-s ... --x64``), from
     ``benchmarks/results/quasi_static/``."""
-    return _sweep_table("", "quasi_static/compliance_sweep_{{geom}}.json")
+    return _sweep_table("quasi_static/compliance_sweep_{geom}.json")
 
 
 def compliance_sweep_envs_law() -> str:
     """The same sweep run with the envs' law and MJX as shipped (``--no-compensate-joint-damping
     --no-fix-cone-hessian``)."""
-    return _sweep_table("_envs_law")
+    return _sweep_table("compliance_sweep_{geom}_envs_law.json")
 
 
 def low_stiffness_check() -> str:
@@ -475,6 +474,8 @@ def _pull_speed_mechanism(m: dict) -> list[str]:
 
 def _pull_speed_mjx(m: dict) -> list[str]:
     """The MJX spot checks beside the MuJoCo C replica on the same worlds (``--mjx``)."""
+    from peghole_mjx.experiments.sweep import reduction_pct
+
     lines = [
         f"The experiment itself (MJX-JAX), the first two repeats at one L_C; {m['device']}, "
         f"{m['date'][:10]}:",
@@ -502,10 +503,11 @@ def _pull_speed_mjx(m: dict) -> list[str]:
         if len(rows) < 3:
             continue
         tip, centre, top = (rows[lc] for lc in sorted(rows))
-        red = {}
-        for col in ("peak_fz_late_N", "c_float64_peak_fz_late_N", "oracle_peak_fz_late_N"):
-            t, c_, o = (float(np.mean(x[col])) for x in (tip, centre, top))
-            red[col] = f"{100 * (1 - t / o):.1f} % / {100 * (1 - t / c_):.1f} %"
+        red = {
+            col: f"{reduction_pct(tip[col], top[col]):.1f} % / "
+            f"{reduction_pct(tip[col], centre[col]):.1f} %"
+            for col in ("peak_fz_late_N", "c_float64_peak_fz_late_N", "oracle_peak_fz_late_N")
+        }
         lines += [
             "",
             f"{key[0]}, K_theta {key[1]:g} N m/rad, beta0 {key[2]:+g} deg, {key[3]:g} mm/s, "

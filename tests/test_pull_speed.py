@@ -32,9 +32,8 @@ def test_c_replica_meets_the_oracle_on_the_dual_meshes_when_slow():
     multi-point CCD on (its default) the replica read 0.121 N."""
     c = ps.cell(3.0, -0.2, "dual")
     tab = ps.worlds_at(c, 1)
-    world = {k: float(tab[k][0]) for k in cx.WORLD_KEYS}
     cfg = ps._config("dual", 0.5, None)
-    trace, settle, dt = pull_c(c["preset"], ps.MU, world, 0.5e-3, cfg)
+    trace, settle, dt = pull_c(c["preset"], ps.MU, ps.world(tab, 0), 0.5e-3, cfg)
     row = ps.summarise(trace, settle, dt, cx.EARLY_MM["dual"])
     oracle = float(ps.oracle_late_peaks(c, tab)[0])
     assert row["peak_fz_late_N"] == pytest.approx(oracle, rel=0.05)
