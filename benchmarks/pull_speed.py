@@ -346,6 +346,10 @@ def mjx_check(
             for w in range(len(tp))
         ],
         "nan": res["nan"].tolist(),
+        # recorded since 2026-11-29; the deepest contact inside the two-point windows, um
+        "penetration_two_point_um": [
+            None if np.isnan(v) else float(v * 1e3) for v in res["penetration_two_point_mm"]
+        ],
         "wall_s": time.perf_counter() - t0,
     }
 

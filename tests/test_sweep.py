@@ -65,6 +65,17 @@ def test_chatter_stats_reads_steady_and_impulsive_windows():
     assert k == 20
 
 
+def test_two_point_penetration_ignores_samples_outside_the_windows():
+    # world 0: deep contact at the exit (no window there), shallow inside the windows;
+    # world 1: never in two-point contact
+    two_point = np.array([[True, True, False], [False, False, False]])
+    pen = np.array([[0.002, 0.003, 0.144], [0.001, 0.2, 0.0]])
+    got = cx.two_point_penetration(two_point, pen)
+    assert got[0] == pytest.approx(0.003) and np.isnan(got[1])
+    with pytest.raises(ValueError, match="differ"):
+        cx.two_point_penetration(two_point, pen[:, :2])
+
+
 # ---- the grid and the pairing -----------------------------------------------------------
 def test_grid_cells_and_pairing():
     g = sweep.Grid(("rect-2",), (300.0, 3.0), (-0.2, 0.2), (0.266,), theta0_arm_deg=-0.9)
@@ -138,6 +149,8 @@ def test_tiny_sweep_writes_the_documented_keys(tiny_sweep):
     (cell,) = doc["cells"]
     assert cell["n_worlds"] == 6 and cell["nan_worlds"] == 0
     assert set(cell["peak_fz_N"]) == {"0", "75", "150"}
+    tp_pen = cell["max_penetration_two_point_um"]
+    assert tp_pen is None or tp_pen <= cell["max_penetration_um"]
     for k in ("reduction_tip_vs_top_pct", "reduction_tip_vs_centre_pct"):
         lo, hi = cell[k]["ci95"]
         assert lo <= cell[k]["value"] <= hi

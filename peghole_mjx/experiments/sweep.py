@@ -213,6 +213,7 @@ def _world_summary(res: dict, geometry: str) -> dict[str, np.ndarray]:
         "nan": res["nan"],
         "penetration_mm": res["penetration_mm"],
         "penetration_in_hole_mm": res["penetration_in_hole_mm"],
+        "penetration_two_point_mm": res["penetration_two_point_mm"],
         "two_point_samples": tp.sum(1),
         "both_frac": both,
         "curve_fz": curve,
@@ -325,6 +326,7 @@ def run_sweep(cfg: SweepConfig, out: Path, progress: bool = True) -> dict:
                 else np.concatenate([s[k] for s in summaries])
             )
             for k in summaries[0]
+            if all(k in s for s in summaries)  # a key added to the summaries since a part ran
         }
         for j, i in enumerate(ix):
             sel = owner == j
@@ -427,6 +429,11 @@ def _cell_result(cell: dict, d: dict, grid: Grid, seed: int, exp: cx.ExperimentC
     out["max_penetration_um"] = float(np.nanmax(d["penetration_mm"]) * 1e3)
     if "penetration_in_hole_mm" in d:
         out["max_penetration_in_hole_um"] = float(np.nanmax(d["penetration_in_hole_mm"]) * 1e3)
+    if "penetration_two_point_mm" in d:
+        tp = np.asarray(d["penetration_two_point_mm"], float)
+        out["max_penetration_two_point_um"] = (
+            float(np.nanmax(tp) * 1e3) if np.isfinite(tp).any() else None
+        )
     out["penetration_limit_um"] = 0.25 * PRESETS[cell["preset"]].radial_clearance_mm * 1e3
     out["two_point_worlds"] = {
         f"{lc:g}": int(np.sum(d["two_point_samples"][k * r : (k + 1) * r] > 0))
