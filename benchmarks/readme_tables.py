@@ -480,6 +480,7 @@ def _pull_speed_mechanism(m: dict) -> list[str]:
 
 def _pull_speed_mjx(m: dict) -> list[str]:
     """The MJX spot checks beside the MuJoCo C replica on the same worlds (``--mjx``)."""
+    from benchmarks.pull_speed import _check_key
     from peghole_mjx.experiments.sweep import reduction_pct
 
     lines = [
@@ -502,8 +503,7 @@ def _pull_speed_mjx(m: dict) -> list[str]:
     # where a check ran at every L_C: the reductions of those two worlds per L_C (paired draws)
     by_check: dict[tuple, dict[float, dict]] = {}
     for r in m["rows"]:
-        key = tuple(r[k] for k in ("preset", "k_rot_Nm_rad", "beta0_deg", "speed_mm_s",
-                                   "precision", "timestep_ms"))  # fmt: skip
+        key = (r["preset"], *_check_key(r)[1:-1])  # the check less its L_C
         by_check.setdefault(key, {})[r["L_C_mm"]] = r
     for key, rows in by_check.items():
         if len(rows) < 3:
