@@ -23,10 +23,16 @@ world finishes; a rerun skips the worlds already there (resumable), and ``--out`
 every (cell, speed) of that store, whatever the invocation ran. The rect store holds one
 (cell, speed) beyond the plan: K_theta 3 N m/rad, beta0 +0.2 deg at 1 mm/s, a convergence
 check of the one rect-2 cell that stayed more than 10 points from the oracle at 2 mm/s (added
-2026-11-29 after that result, so reported beside it and never counted in its place)::
+2026-11-29 after that result, so reported beside it and never counted in its place). The
+``dual_tilt`` plans pull the thesis's dual experiment with its commanded tilt (theta0 -0.9 deg,
+Table 2.2), where the oracle predicts R2 (``benchmarks.r2_map``); each plan has its own store
+(``pull_speed_<plan>.json``) and summary, with the centre-vs-top reduction (R2's full
+ordering) and the two-point region's length per L_C beside the oracle's::
 
     python -m benchmarks.pull_speed                     # rect: the plan's cells, 2 processes
-    python -m benchmarks.pull_speed --geometry dual     # dual
+    python -m benchmarks.pull_speed --plan dual         # dual (--geometry dual is the same)
+    python -m benchmarks.pull_speed --plan dual_tilt    # the thesis's tilted dual experiment
+    python -m benchmarks.pull_speed --plan dual_tilt_coulomb   # the same, Coulomb friction rows
     python -m benchmarks.pull_speed --speeds 20,5 --repeats 4 --out /tmp/ps.json
     python -m benchmarks.pull_speed --cells 3:0.2 --speeds 1   # one more (cell, speed)
     python -m benchmarks.pull_speed --mjx     # MJX spot checks (float64 and float32)
@@ -66,6 +72,11 @@ class Plan:
     preset: str
     cells: tuple[tuple[float, float], ...]
     speeds_mm_s: tuple[float, ...]
+    #: the commanded initial tilt of every cell, deg (beta0 is then the cells' second value)
+    theta0_deg: float = 0.0
+    #: frictional rows as stiff as the normal one (MuJoCo's default ``solreffriction``, close
+    #: to Coulomb) instead of the experiment's, relaxed over ``SimOptions.friction_timeconst``
+    coulomb_rows: bool = False
 
 
 #: rect: the two K_theta = 3 N m/rad cells where the sweep departs from the oracle, 10 N m/rad
@@ -85,20 +96,47 @@ PLANS = {
         ((3.0, -0.2), (3.0, 0.2), (30.0, -0.2), (30.0, 0.2), (300.0, -0.2), (300.0, 0.2)),
         (20.0, 0.5),
     ),
+    # the thesis's own dual experiment (Table 2.2: K_x 0.3 N/mm, theta0 -0.9 deg, erratum E3)
+    # at mu 0.266, beta0 0, over the full grid's five K_theta. Fixed 2026-11-29 before any
+    # simulated result of these cells, by the quasi-static oracle alone
+    # (``benchmarks.r2_map``): it is the only arm of the full dual grid at the thesis's K_x
+    # and dual-2 where the oracle resolves R2's full ordering with its own paired intervals
+    # (K_theta 100, 30 and 10 N m/rad); 300 (the torque cap, 3 N m, clips the commanded tilt's
+    # 4.7 N m) and 3 N m/rad (the oracle wedges at the centre and top) are run beside them.
+    "dual_tilt": Plan(
+        "dual-2",
+        ((300.0, 0.0), (100.0, 0.0), (30.0, 0.0), (10.0, 0.0), (3.0, 0.0)),
+        (20.0, 0.5),
+        theta0_deg=-0.9,
+    ),
+    # the same worlds with Coulomb frictional rows, at the slow pull only: at 0.5 mm/s the
+    # experiment's rows (relaxed over 1 s) carried an effective friction coefficient of
+    # 0.04-0.17 instead of 0.266 under the tilt's tens of newtons of normal force (measured
+    # 2026-11-29 in dual_tilt; one world at L_C = top, K_theta 100 N m/rad: 6.1 N with the
+    # experiment's rows, 34.0 N with Coulomb rows, oracle 32.4 N). A diagnosis of the friction
+    # model, run on the three K_theta where the oracle predicts R2 within the caps; it never
+    # replaces the dual_tilt results.
+    "dual_tilt_coulomb": Plan(
+        "dual-2",
+        ((100.0, 0.0), (30.0, 0.0), (10.0, 0.0)),
+        (0.5,),
+        theta0_deg=-0.9,
+        coulomb_rows=True,
+    ),
 }
 REPEATS = 16
 
 
-def cell(k_rot: float, beta0: float, geometry: str = "rect") -> dict:
-    """The regime-sweep cell (same keys as :meth:`Grid.cells`)."""
+def cell(k_rot: float, beta0: float, plan: str = "rect") -> dict:
+    """The regime-sweep cell of a :data:`PLANS` entry (same keys as :meth:`Grid.cells`)."""
     return {
-        "preset": PLANS[geometry].preset,
+        "preset": PLANS[plan].preset,
         "mu": MU,
         "k_rot_Nm_rad": k_rot,
         "k_lat_N_m": 300.0,
         "delta0_mm": 2.0,
         "beta0_deg": beta0,
-        "theta0_deg": 0.0,
+        "theta0_deg": PLANS[plan].theta0_deg,
     }
 
 
@@ -135,13 +173,27 @@ def _geometry(c: dict) -> str:
     return PRESETS[c["preset"]].kind
 
 
+def _oracle(c: dict, tab: dict[str, np.ndarray]) -> tuple[dict[str, np.ndarray], float]:
+    """The quasi-static oracle of each world of ``tab`` in cell ``c``, and the start depth."""
+    h0 = sw._h0_mm(c["preset"], cx.ExperimentConfig(geometry=_geometry(c)))
+    return cx.quasi_static(c["preset"], c["mu"], tab, h0), h0
+
+
 def oracle_late_peaks(c: dict, tab: dict[str, np.ndarray]) -> np.ndarray:
     """The quasi-static oracle's late peak F_z (N) of each world of ``tab`` in cell ``c``, the
     first :data:`~peghole_mjx.experiments.compliance.EARLY_MM` of the pull left out."""
-    g = _geometry(c)
-    h0 = sw._h0_mm(c["preset"], cx.ExperimentConfig(geometry=g))
-    qs = cx.quasi_static(c["preset"], c["mu"], tab, h0)
-    return cx.quasi_static_peaks(qs, h0, cx.EARLY_MM[g])
+    qs, h0 = _oracle(c, tab)
+    return cx.quasi_static_peaks(qs, h0, cx.EARLY_MM[_geometry(c)])
+
+
+def oracle_two_point_mm(c: dict, tab: dict[str, np.ndarray]) -> np.ndarray:
+    """The length of the oracle's two-point region (mm of tip depth with both wall sides in
+    contact) of each world, over the same late part of the pull as the peaks (R2's "narrower"
+    peaks, C2.2's region)."""
+    qs, h0 = _oracle(c, tab)
+    late = (h0 - qs["depth_mm"]) > cx.EARLY_MM[_geometry(c)]
+    step = abs(float(qs["depth_mm"][1] - qs["depth_mm"][0]))
+    return (qs["two_point"] & late[None, :]).sum(1) * step
 
 
 #: where the compliance centre sits: index into ``compliance.LC_MM[geometry]``
@@ -160,17 +212,42 @@ def world(tab: dict[str, np.ndarray], i: int) -> dict[str, float]:
     return {k: float(tab[k][i]) for k in cx.WORLD_KEYS}
 
 
+#: how the replica's engine reads with Coulomb frictional rows (:attr:`Plan.coulomb_rows`)
+COULOMB = "; frictional rows as stiff as the normal (Coulomb)"
+
+
+def engine_of(coulomb_rows: bool) -> str:
+    """The replica's engine string of a plan's rows."""
+    return ENGINE + (COULOMB if coulomb_rows else "")
+
+
 def _job(args: tuple) -> dict:
-    key, c, speed_mm_s, world, oracle = args
+    key, c, speed_mm_s, world, oracle, coulomb = args
+    cfg = cx.ExperimentConfig(geometry=_geometry(c))
+    if coulomb:
+        import dataclasses
+
+        cfg = dataclasses.replace(
+            cfg, sim=dataclasses.replace(cfg.sim_options(), friction_timeconst=None)
+        )
     t0 = time.perf_counter()
-    trace, settle, dt = pull_c(c["preset"], c["mu"], world, speed_mm_s * MM)
+    trace, settle, dt = pull_c(c["preset"], c["mu"], world, speed_mm_s * MM, cfg)
     row = summarise(trace, settle, dt, cx.EARLY_MM[_geometry(c)])
     wall = time.perf_counter() - t0
-    return {"key": key, **row, "oracle_peak_fz_late_N": oracle, "wall_s": wall, "engine": ENGINE}
+    return {
+        "key": key,
+        **row,
+        "oracle_peak_fz_late_N": oracle,
+        "wall_s": wall,
+        "engine": engine_of(coulomb),
+    }
 
 
-def jobs(cells: list[dict], speeds: tuple[float, ...], repeats: int, seed: int) -> list[tuple]:
-    """Every world of every (cell, speed): (key, cell, speed mm/s, world, oracle late peak)."""
+def jobs(
+    cells: list[dict], speeds: tuple[float, ...], repeats: int, seed: int, coulomb: bool = False
+) -> list[tuple]:
+    """Every world of every (cell, speed): (key, cell, speed mm/s, world, oracle late peak,
+    Coulomb frictional rows or not)."""
     out = []
     for c in cells:
         tab = sw.cell_table(c, repeats, seed)
@@ -179,15 +256,19 @@ def jobs(cells: list[dict], speeds: tuple[float, ...], repeats: int, seed: int) 
             for i in range(len(tab["L_C"])):
                 w = world(tab, i)
                 key = json.dumps([c["k_rot_Nm_rad"], c["beta0_deg"], v, w["L_C"], i % repeats])
-                out.append((key, c, v, w, float(orc[i])))
+                out.append((key, c, v, w, float(orc[i]), coulomb))
     return out
 
 
-def reductions(rows: dict[str, dict], c: dict, v: float, repeats: int) -> dict | None:
-    """Paired reductions of one (cell, speed) from its finished worlds (None if incomplete)."""
+def reductions(
+    rows: dict[str, dict], c: dict, v: float, repeats: int, seed: int = 0
+) -> dict | None:
+    """Paired reductions of one (cell, speed) from its finished worlds (None if incomplete),
+    and the mean length of the two-point region per L_C beside the oracle's."""
     lcs = np.array(cx.LC_MM[_geometry(c)]) * MM
     sim = np.full((3, repeats), np.nan)
     orc = np.full((3, repeats), np.nan)
+    windows = np.zeros((3, repeats))
     both = []
     for j, lc in enumerate(lcs):
         for r in range(repeats):
@@ -197,6 +278,7 @@ def reductions(rows: dict[str, dict], c: dict, v: float, repeats: int) -> dict |
             p = rows[key]["peak_fz_late_N"]
             sim[j, r] = np.nan if p is None else p
             orc[j, r] = rows[key]["oracle_peak_fz_late_N"]
+            windows[j, r] = rows[key]["two_point_windows"]
             if rows[key]["both_walls_frac_in_two_point"] is not None:
                 both.append(rows[key]["both_walls_frac_in_two_point"])
     ok = np.all(np.isfinite(sim), axis=0)
@@ -204,17 +286,36 @@ def reductions(rows: dict[str, dict], c: dict, v: float, repeats: int) -> dict |
     out = {
         "k_rot_Nm_rad": c["k_rot_Nm_rad"],
         "beta0_deg": c["beta0_deg"],
+        "theta0_deg": c["theta0_deg"],
         "speed_mm_s": v,
         "n_repeats": int(ok.sum()),
         "peak_fz_N": dict(zip(("tip", "centre", "top"), np.nanmean(sim, 1).tolist(), strict=True)),
         "oracle_peak_fz_N": dict(zip(("tip", "centre", "top"), orc.mean(1).tolist(), strict=True)),
         "both_walls_frac_median": float(np.median(both)) if both else None,
+        # two-point windows x the 20 ms window x the pull speed: mm of pull in two-point contact
+        "two_point_mm": dict(
+            zip(AT, (windows * cx.ExperimentConfig().record_every_s * v).mean(1), strict=True)
+        ),
+        "oracle_two_point_mm": dict(
+            zip(
+                AT,
+                oracle_two_point_mm(c, sw.cell_table(c, repeats, seed)).reshape(3, -1).mean(1),
+                strict=True,
+            )
+        ),
     }
-    for name, ref, oref in (("top", top, orc[2]), ("centre", centre, orc[1])):
-        out[f"reduction_tip_vs_{name}_pct"] = {
-            "value": sw.reduction_pct(tip, ref),
-            "ci95": sw.paired_bootstrap(tip, ref),
-            "oracle": sw.reduction_pct(orc[0], oref),
+    pairs = {
+        "tip_vs_top": (tip, top, orc[0], orc[2]),
+        "tip_vs_centre": (tip, centre, orc[0], orc[1]),
+        # R2's full ordering (tip < centre < top) needs the centre against the top too
+        "centre_vs_top": (centre, top, orc[1], orc[2]),
+    }
+    for name, (a, b, oa, ob) in pairs.items():
+        out[f"reduction_{name}_pct"] = {
+            "value": sw.reduction_pct(a, b),
+            "ci95": sw.paired_bootstrap(a, b),
+            "oracle": sw.reduction_pct(oa, ob),
+            "oracle_ci95": sw.paired_bootstrap(oa, ob),
         }
     return out
 
@@ -272,7 +373,7 @@ def mechanism_row(name: str) -> dict:
     }
 
 
-#: MJX spot checks (geometry, K_theta, beta0, speed mm/s, precision[, physics step ms or None
+#: MJX spot checks (plan, K_theta, beta0, speed mm/s, precision[, physics step ms or None
 #: for the experiment's[, L_C: a key of :data:`AT`, default top]]): the sweep's first two
 #: repeats at that L_C, to show that MJX agrees with the MuJoCo C replica; the rows with a
 #: step are float32 at the envs' 2 ms step (the experiment's rect step is 1 ms)
@@ -294,6 +395,12 @@ MJX_CHECKS = (
     ("rect", 3.0, 0.2, 2.0, "float64", None, "centre"),
     ("rect", 3.0, 0.2, 2.0, "float64", None, "top"),
     ("dual", 3.0, -0.2, 0.5, "float64", None, "centre"),
+    # the thesis's tilted dual experiment (plan dual_tilt) at K_theta 10 N m/rad, its largest
+    # R2 effect within the caps in the oracle; chosen 2026-11-29 from the oracle alone, before
+    # any simulated result of the plan
+    ("dual_tilt", 10.0, 0.0, 0.5, "float64", None, "tip"),
+    ("dual_tilt", 10.0, 0.0, 0.5, "float64", None, "centre"),
+    ("dual_tilt", 10.0, 0.0, 0.5, "float64", None, "top"),
 )
 MJX_REPEATS = 2
 
@@ -309,8 +416,13 @@ def _config(geometry: str, speed_mm_s: float, step_ms: float | None) -> cx.Exper
     return cfg
 
 
+def geometry_of(plan: str) -> str:
+    """rect or dual: the geometry of a :data:`PLANS` entry."""
+    return PRESETS[PLANS[plan].preset].kind
+
+
 def mjx_check(
-    geometry: str,
+    plan: str,
     k_rot: float,
     beta0: float,
     speed_mm_s: float,
@@ -324,15 +436,18 @@ def mjx_check(
     import jax
 
     jax.config.update("jax_enable_x64", precision == "float64")
-    c = cell(k_rot, beta0, geometry)
+    c = cell(k_rot, beta0, plan)
+    geometry = geometry_of(plan)
     cfg = _config(geometry, speed_mm_s, step_ms)
     tab = worlds_at(c, MJX_REPEATS, at)
     t0 = time.perf_counter()
     res = cx.Extraction(c["preset"], cfg, mu=MU).run(progress=False, table=tab)
     tp = res["two_point"]
     return {
+        "plan": plan,
         "geometry": geometry,
         "preset": c["preset"],
+        "theta0_deg": c["theta0_deg"],
         "k_rot_Nm_rad": k_rot,
         "beta0_deg": beta0,
         "speed_mm_s": speed_mm_s,
@@ -355,7 +470,7 @@ def mjx_check(
 def c_twin(row: dict) -> dict:
     """The MuJoCo C replica on the same worlds as an MJX spot-check row."""
     g = row["geometry"]
-    c = cell(row["k_rot_Nm_rad"], row["beta0_deg"], g)
+    c = cell(row["k_rot_Nm_rad"], row["beta0_deg"], _plan(row))
     tab = worlds_at(c, MJX_REPEATS, _at(row))
     cfg = _config(g, row["speed_mm_s"], row["timestep_ms"])
     peaks, both = [], []
@@ -371,6 +486,11 @@ def c_twin(row: dict) -> dict:
     }
 
 
+def _plan(row: dict) -> str:
+    """The :data:`PLANS` key of a committed row (rows from before the key: their geometry)."""
+    return row.get("plan", row["geometry"])
+
+
 def _at(row: dict) -> str:
     """The :data:`AT` key of a committed row's L_C."""
     lcs = cx.LC_MM[row["geometry"]]
@@ -378,13 +498,13 @@ def _at(row: dict) -> str:
 
 
 def _check_key(x: dict | tuple) -> tuple:
-    """(geometry, K_theta, beta0, speed, precision, step ms, L_C) of a check or a row; a check
+    """(plan, K_theta, beta0, speed, precision, step ms, L_C) of a check or a row; a check
     without a step runs at the experiment's own (``compliance.TIMESTEP_S``), without an L_C at
     the top."""
     if isinstance(x, dict):
-        keys = ("geometry", "k_rot_Nm_rad", "beta0_deg", "speed_mm_s", "precision")
-        return (*(x[k] for k in keys), round(x["timestep_ms"], 6), _at(x))
-    step = x[5] if len(x) > 5 and x[5] is not None else cx.TIMESTEP_S[x[0]] * 1e3
+        keys = ("k_rot_Nm_rad", "beta0_deg", "speed_mm_s", "precision")
+        return (_plan(x), *(x[k] for k in keys), round(x["timestep_ms"], 6), _at(x))
+    step = x[5] if len(x) > 5 and x[5] is not None else cx.TIMESTEP_S[geometry_of(x[0])] * 1e3
     return (*x[:5], round(step, 6), x[6] if len(x) > 6 else "top")
 
 
@@ -464,7 +584,14 @@ def write_figure(rect: dict, mechanism: dict | None, path: Path) -> Path:
 
 def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    ap.add_argument("--geometry", default="rect", choices=list(PLANS))
+    ap.add_argument(
+        "--plan",
+        "--geometry",
+        dest="plan",
+        default="rect",
+        choices=list(PLANS),
+        help="which cells and speeds (PLANS); rect and dual are the regime sweep's",
+    )
     ap.add_argument("--speeds", default=None, help="mm/s, comma-separated (default: the plan's)")
     ap.add_argument(
         "--cells", default=None, help="K_THETA:BETA0 pairs, comma-separated (default: the plan's)"
@@ -486,7 +613,8 @@ def main() -> int:
     )
     ap.add_argument("--mjx-one", help=argparse.SUPPRESS)
     args = ap.parse_args()
-    plan = PLANS[args.geometry]
+    plan = PLANS[args.plan]
+    geometry = PRESETS[plan.preset].kind
     if args.mjx_one:
         _mjx_one(args.mjx_one, args.out)
         return 0
@@ -504,7 +632,7 @@ def main() -> int:
         )
         return 0
     if args.out is None:
-        args.out = RESULTS / f"pull_speed_{args.geometry}.json"
+        args.out = RESULTS / f"pull_speed_{args.plan}.json"
     if args.mechanism:
         path = args.out.with_name(args.out.stem + "_mechanism.json")
         rows = json.loads(path.read_text())["rows"] if path.exists() else []
@@ -535,7 +663,7 @@ def main() -> int:
             raise SystemExit("--cells takes K_THETA:BETA0 pairs, e.g. 3:-0.2,30:-0.2") from None
         if not pairs or any(len(c) != 2 or c[0] <= 0 for c in pairs):
             raise SystemExit("--cells takes K_THETA:BETA0 pairs with K_THETA > 0")
-    cells = [cell(k, b, args.geometry) for k, b in pairs]
+    cells = [cell(k, b, args.plan) for k, b in pairs]
     parts = args.out.with_suffix(".parts.jsonl")
     rows = {}
     if parts.exists():
@@ -544,13 +672,15 @@ def main() -> int:
                 r = json.loads(line)
                 # rows from before the engine was recorded had multi-point CCD on, which the
                 # rect scenes never use (identical traces, checked 2026-11-29)
-                if r.get("engine", ENGINE if args.geometry == "rect" else None) != ENGINE:
+                engine = engine_of(plan.coulomb_rows)
+                if r.get("engine", ENGINE if geometry == "rect" else None) != engine:
                     raise SystemExit(
                         f"{parts} holds worlds of another replica ({r.get('engine')!r}, this one "
-                        f"is {ENGINE!r}): move it away to start afresh"
+                        f"is {engine!r}): move it away to start afresh"
                     )
                 rows[r["key"]] = r
-    todo = [j for j in jobs(cells, speeds, args.repeats, args.seed) if j[0] not in rows]
+    todo = jobs(cells, speeds, args.repeats, args.seed, plan.coulomb_rows)
+    todo = [j for j in todo if j[0] not in rows]
     # slow pulls first: the longest jobs start early and the two processes finish together
     todo.sort(key=lambda j: j[2])
     t0 = time.perf_counter()
@@ -562,17 +692,18 @@ def main() -> int:
     summary = [
         s
         for k, b, v in summarised(rows, plan)
-        if (s := reductions(rows, cell(k, b, args.geometry), v, args.repeats)) is not None
+        if (s := reductions(rows, cell(k, b, args.plan), v, args.repeats, args.seed)) is not None
     ]
     doc = {
         "preset": plan.preset,
         "mu": MU,
-        "engine": f"{ENGINE}; the experiment's scene and settings",
+        "theta0_deg": plan.theta0_deg,
+        "engine": f"{engine_of(plan.coulomb_rows)}; the experiment's scene and settings",
         "settings": {
-            "experiment": cx.config_dict(cx.ExperimentConfig(geometry=args.geometry)),
+            "experiment": cx.config_dict(cx.ExperimentConfig(geometry=geometry)),
             "repeats": args.repeats,
             "seed": args.seed,
-            "skip_mm": cx.EARLY_MM[args.geometry],
+            "skip_mm": cx.EARLY_MM[geometry],
         },
         "cells": summary,
         "worlds": sorted(rows.values(), key=lambda r: r["key"]),
@@ -582,7 +713,7 @@ def main() -> int:
         **provenance(),
     }
     write_text(args.out, json.dumps(sw.clean_json(doc), indent=1, allow_nan=False) + "\n")
-    if args.geometry == "rect":
+    if args.plan == "rect":
         mech = args.out.with_name(args.out.stem + "_mechanism.json")
         print(
             write_figure(

@@ -458,6 +458,119 @@ def pull_speed() -> str:
     return "\n".join(lines)
 
 
+def r2_map() -> str:
+    """Where the quasi-static oracle predicts R2 over the full dual grid (benchmarks/r2_map.py),
+    and the thesis's tilted dual experiment pulled in MuJoCo C (``pull_speed --plan
+    dual_tilt``) beside the oracle."""
+    lines = []
+    path = RESULTS / "r2_map.json"
+    if path.exists():
+        m = json.loads(path.read_text())
+        lines += [
+            "| preset | mu | cells | within the law's caps | ordered | tip below top only | "
+            "unresolved | reversed | ordered, over a cap |",
+            "|---|---|---|---|---|---|---|---|---|",
+        ]
+        for s in m["summary"]:
+            lines.append(
+                f"| {s['preset']} | {s['mu']:g} | {s['cells']} | {s['within_caps']} | "
+                f"{s['ordered']} | {s['tip_below_top']} | {s['unresolved']} | "
+                f"{s['reversed']} | {s['ordered_over_caps']} |"
+            )
+        lines += [
+            "",
+            f"Quasi-static oracle, {m['repeats']} paired draws per cell (seed {m['seed']}), "
+            f"95 % paired bootstrap intervals; caps: axial force {m['force_cap_N']:g} N, "
+            f"torque {m['torque_cap_Nm']:g} N m; {m['device']}, {m['date'][:10]}.",
+        ]
+    stores = [
+        (RESULTS / f"pull_speed_{n}.json", rows)
+        for n, rows in (("dual_tilt", "the experiment's"), ("dual_tilt_coulomb", "Coulomb"))
+    ]
+    stores = [(json.loads(p.read_text()), rows) for p, rows in stores if p.exists()]
+
+    def red(x: dict) -> str:
+        lo, hi = x["oracle_ci95"]
+        return f"{_ci(x)} ({x['oracle']:.1f} [{lo:.1f}, {hi:.1f}])"
+
+    def resolved(c: dict, ci: str) -> str:
+        ok = all(c[f"reduction_{n}_pct"][ci][0] > 0 for n in ("tip_vs_centre", "centre_vs_top"))
+        return "yes" if ok else "no"
+
+    if stores:
+        lines += [
+            "",
+            "| K_theta N m/rad | pull mm/s | frictional rows | mean peak F_z N: tip / centre / top "
+            "(oracle) | tip vs top % [95 % CI] (oracle [its CI]) | tip vs centre | centre vs top | "
+            "ordering resolved: simulation / oracle | two-point region mm: tip / centre / top "
+            "(oracle) | both walls loaded, median |",
+            "|---|---|---|---|---|---|---|---|---|---|",
+        ]
+    notes = []
+    for d, rows in stores:
+        for c in d["cells"]:
+            pk = " / ".join(f"{v:.3g}" for v in c["peak_fz_N"].values())
+            orc = " / ".join(f"{v:.3g}" for v in c["oracle_peak_fz_N"].values())
+            tp = " / ".join(f"{v:.1f}" for v in c["two_point_mm"].values())
+            otp = " / ".join(f"{v:.1f}" for v in c["oracle_two_point_mm"].values())
+            both = c["both_walls_frac_median"]
+            lines.append(
+                f"| {c['k_rot_Nm_rad']:g} | {c['speed_mm_s']:g} | {rows} | {pk} ({orc}) | "
+                f"{red(c['reduction_tip_vs_top_pct'])} | {red(c['reduction_tip_vs_centre_pct'])} "
+                f"| {red(c['reduction_centre_vs_top_pct'])} | {resolved(c, 'ci95')} / "
+                f"{resolved(c, 'oracle_ci95')} | {tp} ({otp}) | "
+                f"{'-' if both is None else f'{both:.2f}'} |"
+            )
+        notes.append(
+            f"{rows} rows: {d['settings']['repeats']} paired repeats per L_C, {d['device']}, "
+            f"{d['date'][:10]}, {d['pulls_wall_s'] / 60:.0f} min of pulls (one core each)"
+        )
+    if stores:
+        d = stores[0][0]
+        lines += [
+            "",
+            f"{d['preset']}, mu {d['mu']:g}, K_lat 300 N/m, delta0 2 mm, beta0 0, theta0 "
+            f"{d['theta0_deg']:g} deg; {d['engine'].split(';')[0]}; " + "; ".join(notes) + ".",
+        ]
+    path = RESULTS / "dual_tilt" / "compliance_sweep_dual.json"
+    if path.exists():
+        d = json.loads(path.read_text())
+
+        def sred(c: dict, n: str) -> str:
+            x = c[f"reduction_{n}_pct"]
+            return f"{_ci(x)} ({c['quasi_static'][f'reduction_{n}_pct']:.1f})"
+
+        lines += [
+            "",
+            "| K_theta N m/rad | mean peak F_z N: tip / centre / top (oracle) | tip vs top % "
+            "[95 % CI] (oracle) | tip vs centre | centre vs top | ordering resolved | deepest "
+            "contact in two-point windows um (limit) | NaN worlds |",
+            "|---|---|---|---|---|---|---|---|",
+        ]
+        for c in d["cells"]:
+            pk = " / ".join(f"{v:.3g}" for v in c["peak_fz_N"].values())
+            orc = " / ".join(f"{v:.3g}" for v in c["quasi_static"]["peak_fz_N"].values())
+            ok = all(
+                c[f"reduction_{n}_pct"]["ci95"][0] > 0 for n in ("tip_vs_centre", "centre_vs_top")
+            )
+            pen = c.get("max_penetration_two_point_um")
+            lines.append(
+                f"| {c['k_rot_Nm_rad']:g} | {pk} ({orc}) | {sred(c, 'tip_vs_top')} | "
+                f"{sred(c, 'tip_vs_centre')} | {sred(c, 'centre_vs_top')} | "
+                f"{'yes' if ok else 'no'} | {_num(pen, '.1f')} ({c['penetration_limit_um']:.1f}) "
+                f"| {c['nan_worlds']} |"
+            )
+        x = d["settings"]
+        lines += [
+            "",
+            f"The experiment itself (MJX-JAX, `peghole experiment sweep`), the same cells: "
+            f"{sum(c['n_worlds'] for c in d['cells'])} worlds, "
+            f"{x['experiment']['speed_m_s'] * 1e3:g} mm/s, {x.get('precision', 'float32')}, "
+            f"{d['device']}, {d['date'][:10]}.",
+        ]
+    return "\n".join(lines)
+
+
 def _pull_speed_mechanism(m: dict) -> list[str]:
     """One world, one rate-dependent term changed (``pull_speed --mechanism``)."""
     lines = [
@@ -492,18 +605,23 @@ def _pull_speed_mjx(m: dict) -> list[str]:
         "walls loaded |",
         "|---|---|---|---|---|---|---|---|---|---|",
     ]
+
+    def name(r: dict) -> str:
+        tilt = r.get("theta0_deg", 0.0)
+        return r["preset"] + (f", theta0 {tilt:g} deg" if tilt else "")
+
     for r in m["rows"]:
         pk, orc, both = _per_world(r)
         twin = " / ".join(_num(v, ".3f") for v in r.get("c_float64_peak_fz_late_N", []))
         lines.append(
-            f"| {r['preset']} | {r['k_rot_Nm_rad']:g} | {r['beta0_deg']:+g} | {r['L_C_mm']:g} "
+            f"| {name(r)} | {r['k_rot_Nm_rad']:g} | {r['beta0_deg']:+g} | {r['L_C_mm']:g} "
             f"| {r['speed_mm_s']:g} "
             f"| {r['precision']}, {r['timestep_ms']:g} ms | {pk} | {twin or '-'} | {orc} | {both} |"
         )
     # where a check ran at every L_C: the reductions of those two worlds per L_C (paired draws)
     by_check: dict[tuple, dict[float, dict]] = {}
     for r in m["rows"]:
-        key = (r["preset"], *_check_key(r)[1:-1])  # the check less its L_C
+        key = (name(r), *_check_key(r)[1:-1])  # the check less its L_C
         by_check.setdefault(key, {})[r["L_C_mm"]] = r
     for key, rows in by_check.items():
         if len(rows) < 3:
@@ -972,6 +1090,7 @@ TABLES = {
     "compliance_sweep_quasi_static": compliance_sweep_quasi_static,
     "low_stiffness_check": low_stiffness_check,
     "pull_speed": pull_speed,
+    "r2_map": r2_map,
     "throughput": throughput,
     "roofline": roofline,
     "cost": cost,
@@ -996,6 +1115,7 @@ TABLE_FILES = {
     "compliance_sweep_quasi_static": "docs/compliance.md",
     "low_stiffness_check": "docs/compliance.md",
     "pull_speed": "docs/compliance.md",
+    "r2_map": "docs/compliance.md",
     "env_rollouts": "docs/envs.md",
     "pretrained": "docs/results.md",
     "force_sources": "docs/results.md",

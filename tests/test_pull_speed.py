@@ -49,6 +49,7 @@ def _rows(repeats: int, peaks: dict[float, float]) -> dict[str, dict]:
                 "peak_fz_late_N": p * (1 + 0.1 * r),
                 "oracle_peak_fz_late_N": 2 * p,
                 "both_walls_frac_in_two_point": 0.5,
+                "two_point_windows": 10 * r,
             }
     return c, out
 
@@ -59,10 +60,14 @@ def test_reductions_pair_the_same_draws_across_l_c():
     assert red["n_repeats"] == 4
     assert red["reduction_tip_vs_top_pct"]["value"] == pytest.approx(75.0)
     assert red["reduction_tip_vs_centre_pct"]["value"] == pytest.approx(50.0)
+    assert red["reduction_centre_vs_top_pct"]["value"] == pytest.approx(50.0)
     # every repeat scales tip and top alike: the paired interval collapses on the value
     lo, hi = red["reduction_tip_vs_top_pct"]["ci95"]
     assert lo == pytest.approx(75.0) and hi == pytest.approx(75.0)
     assert red["reduction_tip_vs_top_pct"]["oracle"] == pytest.approx(75.0)
+    # 10 r windows of 20 ms at 2 mm/s: 0.4 r mm of pull, mean over r = 0..3 is 0.6 mm
+    assert red["two_point_mm"]["tip"] == pytest.approx(0.6)
+    assert set(red["oracle_two_point_mm"]) == {"tip", "centre", "top"}
 
 
 def test_reductions_wait_for_every_world_of_the_cell():
@@ -89,6 +94,19 @@ def test_jobs_cover_every_cell_speed_l_c_and_repeat_once():
     assert all(np.isfinite(j[4]) for j in jobs)  # the oracle's late peak of each world
 
 
+def test_the_tilt_plan_commands_the_thesis_tilt_in_every_world():
+    """The dual_tilt plan is the thesis's dual experiment (theta0 -0.9 deg, K_x 300 N/m) with
+    beta0 0: every world it pulls carries the commanded tilt, at every L_C."""
+    plan = ps.PLANS["dual_tilt"]
+    jobs = ps.jobs([ps.cell(k, b, "dual_tilt") for k, b in plan.cells], (0.5,), 2, 0)
+    assert len(jobs) == len(plan.cells) * 3 * 2
+    for _, c, _, w, _, coulomb in jobs:
+        assert not coulomb
+        assert c["preset"] == "dual-2" and c["k_lat_N_m"] == 300.0
+        assert w["theta0"] == pytest.approx(np.radians(-0.9)) and w["beta0"] == 0.0
+    assert ps.cell(3.0, -0.2, "dual")["theta0_deg"] == 0.0
+
+
 def test_the_speed_figure_draws_from_the_committed_results(tmp_path):
     rect = json.loads((ps.RESULTS / "pull_speed_rect.json").read_text())
     out = ps.write_figure(rect, None, tmp_path / "f.png")
@@ -100,7 +118,7 @@ def test_every_mjx_check_has_its_committed_row_and_c_twin():
     keys = [ps._check_key(r) for r in doc["rows"]]
     assert sorted(keys) == sorted(ps._check_key(c) for c in ps.MJX_CHECKS)
     for r in doc["rows"]:
-        c = ps.cell(r["k_rot_Nm_rad"], r["beta0_deg"], r["geometry"])
+        c = ps.cell(r["k_rot_Nm_rad"], r["beta0_deg"], ps._plan(r))
         assert r["preset"] == c["preset"]
         assert len(r["c_float64_peak_fz_late_N"]) == len(r["peak_fz_late_N"]) == ps.MJX_REPEATS
         assert r["c_engine"] == ENGINE  # the twin of the replica as it is now

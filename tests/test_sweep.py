@@ -94,6 +94,18 @@ def test_grid_cells_and_pairing():
     assert sorted(set(t1["L_C"].round(6))) == [0.0, 0.075, 0.15]
 
 
+def test_a_tilted_grid_commands_the_tilt_and_untilted_keys_stay():
+    """``theta0_deg`` tilts every beta0 cell (thesis Table 2.2); a grid without it keeps the
+    resume key it had before the field existed, so committed slices are found again."""
+    g = sweep.Grid(("dual-2",), (30.0,), (0.0,), (0.266,), theta0_deg=-0.9)
+    (c,) = g.cells()
+    assert c["theta0_deg"] == -0.9 and c["beta0_deg"] == 0.0
+    assert np.allclose(sweep.cell_table(c, 2, 0)["theta0"], np.radians(-0.9))
+    flat = sweep.SweepConfig(grid=sweep.GRIDS["dual"]["cpu"]).settings()["grid"]
+    assert "theta0_deg" not in flat
+    assert sweep.SweepConfig(grid=g).settings()["grid"]["theta0_deg"] == -0.9
+
+
 def test_paired_bootstrap_interval_contains_the_estimate():
     rng = np.random.default_rng(0)
     top = rng.uniform(4, 6, 16)
@@ -116,6 +128,7 @@ def test_paired_bootstrap_interval_contains_the_estimate():
         (["--geometry", "rect", "--mu", "nan"], "must be finite"),
         (["--geometry", "rect", "--k-rot", "abc"], "comma-separated numbers"),
         (["--geometry", "rect", "--speed-mm-s", "0"], "--speed-mm-s must be > 0"),
+        (["--geometry", "dual", "--theta0", "-52"], "|theta0| must be <= 5 deg"),
     ],
 )
 def test_sweep_bad_input_is_one_line(args, message, capsys, tmp_path):
@@ -151,7 +164,11 @@ def test_tiny_sweep_writes_the_documented_keys(tiny_sweep):
     assert set(cell["peak_fz_N"]) == {"0", "75", "150"}
     tp_pen = cell["max_penetration_two_point_um"]
     assert tp_pen is None or tp_pen <= cell["max_penetration_um"]
-    for k in ("reduction_tip_vs_top_pct", "reduction_tip_vs_centre_pct"):
+    for k in (
+        "reduction_tip_vs_top_pct",
+        "reduction_tip_vs_centre_pct",
+        "reduction_centre_vs_top_pct",
+    ):
         lo, hi = cell[k]["ci95"]
         assert lo <= cell[k]["value"] <= hi
         assert k in cell["quasi_static"]

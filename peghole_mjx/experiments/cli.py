@@ -34,6 +34,12 @@ def add_parser(subparsers) -> None:
     w.add_argument("--k-rot", default=None, help="K_theta values, N m/rad, comma-separated")
     w.add_argument("--k-lat", default=None, help="lateral stiffness values, N/m")
     w.add_argument("--beta0", default=None, help="beta0 values, deg (thesis sign)")
+    w.add_argument(
+        "--theta0",
+        type=float,
+        default=None,
+        help="commanded initial tilt of every beta0 cell, deg (thesis Table 2.2: -0.9; default 0)",
+    )
     w.add_argument("--delta0", default=None, help="delta0 values, mm")
     w.add_argument("--mu", default=None, help="friction values")
     w.add_argument("--repeats", type=int, default=None, help="draws per cell and L_C (16)")
@@ -163,6 +169,8 @@ def run_sweep(args: argparse.Namespace) -> int:
         changes["presets"] = tuple(p.strip() for p in args.presets.split(",") if p.strip())
     if args.repeats is not None:
         changes["repeats"] = args.repeats
+    if args.theta0 is not None:
+        changes["theta0_deg"] = args.theta0
     grid = dataclasses.replace(grid, **{k: v for k, v in changes.items() if v is not None})
     grid.check()
     if grid.geometry != args.geometry:

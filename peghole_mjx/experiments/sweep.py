@@ -57,6 +57,8 @@ class Grid:
     #: one extra arm per (K_theta, K_lat, delta0, mu) with this commanded tilt and beta0 = 0
     theta0_arm_deg: float | None = None
     repeats: int = 16
+    #: the commanded tilt of the beta0 arms (thesis Table 2.2: -0.9 deg, erratum E3), deg
+    theta0_deg: float = 0.0
 
     def cells(self) -> list[dict]:
         """Every cell of the grid, in a fixed order."""
@@ -64,7 +66,7 @@ class Grid:
         for preset, mu, kr, kl, d0 in itertools.product(
             self.presets, self.mu, self.k_rot_Nm_rad, self.k_lat_N_m, self.delta0_mm
         ):
-            arms = [(b, 0.0) for b in self.beta0_deg]
+            arms = [(b, self.theta0_deg) for b in self.beta0_deg]
             if self.theta0_arm_deg is not None:
                 arms.append((0.0, self.theta0_arm_deg))
             for b, th in arms:
@@ -110,6 +112,8 @@ class Grid:
             raise UserInputError("delta0 must be >= 0 mm")
         if self.repeats < 2:
             raise UserInputError("repeats must be >= 2 (intervals need at least two draws)")
+        if not (math.isfinite(self.theta0_deg) and abs(self.theta0_deg) <= 5):
+            raise UserInputError("|theta0| must be <= 5 deg (small-angle regime of the thesis)")
         return self
 
     @property
@@ -240,8 +244,11 @@ class SweepConfig:
 
     def settings(self) -> dict:
         """Everything that determines the results (the resume key)."""
+        grid = dataclasses.asdict(self.grid)
+        if grid["theta0_deg"] == 0.0:  # untilted sweeps keep the keys they had before it
+            del grid["theta0_deg"]
         out = {
-            "grid": dataclasses.asdict(self.grid),
+            "grid": grid,
             "seed": self.seed,
             "batch_worlds": self.batch_worlds,
             "experiment": cx.config_dict(self.experiment),
@@ -450,12 +457,15 @@ def _cell_result(cell: dict, d: dict, grid: Grid, seed: int, exp: cx.ExperimentC
         ok = np.all(np.isfinite(np.stack(by)), axis=0)
         tip, ctr, top = (v[ok] for v in by)
         sfx = label.replace("peak_", "").replace("_N", "")
-        for name, ref in (("tip_vs_top", top), ("tip_vs_centre", ctr)):
+        pairs = [("tip_vs_top", tip, top), ("tip_vs_centre", tip, ctr)]
+        if sfx == "fz":  # R2's full ordering (tip < centre < top) needs the centre vs the top
+            pairs.append(("centre_vs_top", ctr, top))
+        for name, a, ref in pairs:
             k = f"reduction_{name}_pct" + ("" if sfx == "fz" else f"_{sfx}")
             out[k] = (
                 {
-                    "value": reduction_pct(tip, ref),
-                    "ci95": paired_bootstrap(tip, ref, seed=seed),
+                    "value": reduction_pct(a, ref),
+                    "ci95": paired_bootstrap(a, ref, seed=seed),
                     "n_pairs": int(ok.sum()),
                 }
                 if ok.sum() >= 2
@@ -467,6 +477,7 @@ def _cell_result(cell: dict, d: dict, grid: Grid, seed: int, exp: cx.ExperimentC
         "peak_fz_N": {f"{lc:g}": float(np.nanmean(v)) for lc, v in zip(lcs, qby, strict=True)},
         "reduction_tip_vs_top_pct": reduction_pct(qby[0], qby[2]),
         "reduction_tip_vs_centre_pct": reduction_pct(qby[0], qby[1]),
+        "reduction_centre_vs_top_pct": reduction_pct(qby[1], qby[2]),
         "reduction_tip_vs_top_all_pct": reduction_pct(qall[0], qall[2]),
     }
     top_lc = lcs[-1] * MM

@@ -1,0 +1,219 @@
+"""Where does the quasi-static model predict R2? The oracle over the full dual grid.
+
+R2 (thesis Sec 2.5.2, Fig 2.20): in the dual peg-hole the force peaks are lower as L_C goes to
+the tip (tip < centre < top). Whether a simulation "shows R2 where the model predicts it" needs
+the cells where the model predicts it, with the same draws and intervals as the simulation.
+This map runs the quasi-static oracle (:func:`peghole_mjx.experiments.compliance.quasi_static`,
+no simulation) on every cell of the regime sweep's full dual grid
+(``sweep.GRIDS["dual"]["full"]``: dual-2 and dual-3, mu 0.01 and 0.266, K_theta, K_lat,
+delta0, beta0 and the theta0 = -0.9 deg arm) and the sweep's paired worlds (16 draws, seed 0,
+L_C at tip / centre / top). Per cell: the oracle's mean late peak F_z per L_C (first
+``EARLY_MM`` of the pull left out, as the experiment's), the paired reductions tip vs top,
+tip vs centre and centre vs top with 95 % bootstrap intervals, and a class:
+
+* ``ordered``: R2's full ordering resolved by the model's own intervals (the lower ends of
+  tip vs centre and centre vs top above 0);
+* ``tip_below_top``: tip vs top resolved above 0, the centre not between;
+* ``reversed``: tip vs top resolved below 0;
+* ``unresolved``: the tip-vs-top interval contains 0.
+
+and two flags where the experiment cannot follow the oracle: ``over_force_cap`` (a mean peak
+above the law's axial force limit, ``LIMITS.max_force_N[2]``: the quasi-static peg wedges) and
+``over_torque_cap`` (the initial rotational spring torque K_theta |beta0 + theta0| at the
+largest draw above ``LIMITS.max_torque_Nm[1]``: the law clips it). Each finished cell is
+appended to ``<out>.parts.jsonl`` (resumable)::
+
+    python -m benchmarks.r2_map          # 480 cells, about 10 min on one core
+"""
+
+from __future__ import annotations
+
+import argparse
+import csv
+import json
+import math
+from pathlib import Path
+
+import numpy as np
+from tqdm import tqdm
+
+from benchmarks.bench_common import RESULTS
+from benchmarks.pull_speed import oracle_late_peaks
+from peghole_mjx.control.limits import LIMITS
+from peghole_mjx.experiments import sweep as sw
+from peghole_mjx.fileio import write_text
+from peghole_mjx.provenance import provenance
+
+GRID = sw.GRIDS["dual"]["full"]
+SEED = 0
+#: the largest repeat factor of beta0 (``sweep.repeat_factors``)
+MAX_FACTOR = 1.25
+CLASSES = ("ordered", "tip_below_top", "unresolved", "reversed")
+
+
+def _key(c: dict) -> str:
+    return json.dumps(c, sort_keys=True)
+
+
+def classify(tt_ci: list[float], tc_ci: list[float], ct_ci: list[float]) -> str:
+    """R2 class of a cell from its paired intervals (tip vs top, tip vs centre, centre vs top)."""
+    if tc_ci[0] > 0 and ct_ci[0] > 0:
+        return "ordered"
+    if tt_ci[0] > 0:
+        return "tip_below_top"
+    if tt_ci[1] < 0:
+        return "reversed"
+    return "unresolved"
+
+
+def map_cell(c: dict, repeats: int, seed: int = SEED) -> dict:
+    """The oracle's R2 row of one grid cell."""
+    tab = sw.cell_table(c, repeats, seed)
+    tip, centre, top = oracle_late_peaks(c, tab).reshape(3, repeats)
+    red = {
+        "tip_vs_top": (tip, top),
+        "tip_vs_centre": (tip, centre),
+        "centre_vs_top": (centre, top),
+    }
+    row = {**c, "repeats": repeats}
+    row["oracle_peak_fz_N"] = {"tip": tip.mean(), "centre": centre.mean(), "top": top.mean()}
+    for name, (a, b) in red.items():
+        row[f"{name}_pct"] = {"value": sw.reduction_pct(a, b), "ci95": sw.paired_bootstrap(a, b)}
+    row["r2_class"] = classify(*(row[f"{n}_pct"]["ci95"] for n in red))
+    peak = max(row["oracle_peak_fz_N"].values())
+    row["over_force_cap"] = bool(not np.isfinite(peak) or peak > LIMITS.max_force_N[2])
+    tilt = abs(math.radians(c["beta0_deg"]) * MAX_FACTOR + math.radians(c["theta0_deg"]))
+    row["over_torque_cap"] = bool(c["k_rot_Nm_rad"] * tilt > LIMITS.max_torque_Nm[1])
+    return sw.clean_json(row)
+
+
+def summary(rows: list[dict]) -> list[dict]:
+    """Per (preset, mu): how many cells fall in each class, within the caps and over them."""
+    out = []
+    for preset in GRID.presets:
+        for mu in GRID.mu:
+            sel = [r for r in rows if r["preset"] == preset and r["mu"] == mu]
+            ok = [r for r in sel if not (r["over_force_cap"] or r["over_torque_cap"])]
+            out.append(
+                {
+                    "preset": preset,
+                    "mu": mu,
+                    "cells": len(sel),
+                    "within_caps": len(ok),
+                    **{k: sum(r["r2_class"] == k for r in ok) for k in CLASSES},
+                    "ordered_over_caps": sum(
+                        r["r2_class"] == "ordered" for r in sel if r not in ok
+                    ),
+                }
+            )
+    return out
+
+
+def write_figure(rows: list[dict], path: Path) -> Path:
+    """One panel per (preset, mu): K_theta x K_lat (rows) against the arm x delta0 (columns),
+    coloured by class, hatched over a cap."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    from matplotlib.colors import ListedColormap
+    from matplotlib.patches import Patch
+
+    colours = ("#1b7837", "#a6dba0", "#f0f0f0", "#c2a5cf")
+    ys = [(k, kl) for k in GRID.k_rot_Nm_rad for kl in GRID.k_lat_N_m]
+    arms = [(b, 0.0) for b in GRID.beta0_deg] + [(0.0, GRID.theta0_arm_deg)]
+    xs = [(a, d) for a in arms for d in GRID.delta0_mm]
+    fig, axes = plt.subplots(
+        len(GRID.presets), len(GRID.mu), figsize=(12, 11), sharex=True, sharey=True
+    )
+    for i, preset in enumerate(GRID.presets):
+        for j, mu in enumerate(GRID.mu):
+            ax = axes[i, j]
+            img = np.full((len(ys), len(xs)), np.nan)
+            for r in rows:
+                if r["preset"] != preset or r["mu"] != mu:
+                    continue
+                y = ys.index((r["k_rot_Nm_rad"], r["k_lat_N_m"]))
+                x = xs.index(((r["beta0_deg"], r["theta0_deg"]), r["delta0_mm"]))
+                img[y, x] = CLASSES.index(r["r2_class"])
+                if r["over_force_cap"] or r["over_torque_cap"]:
+                    ax.text(x, y, "x", ha="center", va="center", fontsize=9)
+            ax.imshow(img, cmap=ListedColormap(colours), vmin=-0.5, vmax=3.5, aspect="auto")
+            ax.set_title(f"{preset}, mu {mu:g}")
+            ax.set_xticks(range(len(xs)))
+            labels = [(f"th0 {a[1]:g}" if a[1] else f"b0 {a[0]:+g}") + f"\nd0 {d:g}" for a, d in xs]
+            ax.set_xticklabels(labels, fontsize=7)
+            ax.set_yticks(range(len(ys)))
+            ax.set_yticklabels([f"K_th {k:g} / K_lat {kl:g}" for k, kl in ys], fontsize=7)
+    handles = [Patch(color=c, label=n) for c, n in zip(colours, CLASSES, strict=True)]
+    handles.append(Patch(color="white", label="x: over the law's force or torque cap"))
+    fig.legend(handles=handles, loc="lower center", ncol=5)
+    fig.suptitle(
+        "R2 (tip < centre < top) in the quasi-static oracle, 16 paired draws, 95 % intervals"
+    )
+    fig.tight_layout(rect=(0, 0.04, 1, 0.97))
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+    return path
+
+
+def main() -> int:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("--repeats", type=int, default=GRID.repeats)
+    ap.add_argument("--out", type=Path, default=RESULTS / "r2_map.json")
+    args = ap.parse_args()
+    if args.repeats < 2:
+        raise SystemExit("--repeats must be >= 2 (intervals need two draws)")
+    parts = args.out.with_suffix(".parts.jsonl")
+    done = {}
+    if parts.exists():
+        for line in parts.read_text().splitlines():
+            if line.strip():
+                r = json.loads(line)
+                done[r["key"]] = r["row"]
+    cells = GRID.check().cells()
+    with parts.open("a") as f:
+        for c in tqdm([c for c in cells if _key(c) not in done], desc="R2 map"):
+            row = map_cell(c, args.repeats)
+            done[_key(c)] = row
+            f.write(json.dumps({"key": _key(c), "row": row}) + "\n")
+            f.flush()
+    rows = [done[_key(c)] for c in cells]
+    if any(r["repeats"] != args.repeats for r in rows):
+        raise SystemExit(f"{parts} holds cells of another --repeats: move it away")
+    doc = {
+        "what": "the quasi-static oracle's R2 class of every cell of the full dual grid",
+        "seed": SEED,
+        "repeats": args.repeats,
+        "force_cap_N": LIMITS.max_force_N[2],
+        "torque_cap_Nm": LIMITS.max_torque_Nm[1],
+        "summary": summary(rows),
+        "cells": rows,
+        **provenance(),
+    }
+    write_text(args.out, json.dumps(doc, indent=1, allow_nan=False) + "\n")
+    flat = [
+        {
+            **{k: r[k] for k in ("preset", "mu", "k_rot_Nm_rad", "k_lat_N_m", "delta0_mm")},
+            **{k: r[k] for k in ("beta0_deg", "theta0_deg", "r2_class")},
+            **{f"oracle_{k}_N": v for k, v in r["oracle_peak_fz_N"].items()},
+            **{f"{n}_pct": r[f"{n}_pct"]["value"] for n in ("tip_vs_top", "tip_vs_centre")},
+            "centre_vs_top_pct": r["centre_vs_top_pct"]["value"],
+            "over_force_cap": r["over_force_cap"],
+            "over_torque_cap": r["over_torque_cap"],
+        }
+        for r in rows
+    ]
+    with args.out.with_suffix(".csv").open("w", newline="") as f:
+        w = csv.DictWriter(f, fieldnames=list(flat[0]))
+        w.writeheader()
+        w.writerows(flat)
+    print(write_figure(rows, args.out.with_suffix(".png")))
+    for s in doc["summary"]:
+        print(s)
+    print(args.out)
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
