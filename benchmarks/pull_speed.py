@@ -77,6 +77,8 @@ class Plan:
     #: frictional rows as stiff as the normal one (MuJoCo's default ``solreffriction``, close
     #: to Coulomb) instead of the experiment's, relaxed over ``SimOptions.friction_timeconst``
     coulomb_rows: bool = False
+    #: friction coefficient of every cell
+    mu: float = MU
 
 
 #: rect: the two K_theta = 3 N m/rad cells where the sweep departs from the oracle, 10 N m/rad
@@ -123,6 +125,18 @@ PLANS = {
         theta0_deg=-0.9,
         coulomb_rows=True,
     ),
+    # the thesis's dual experiment at its printed friction (Table 2.2 mu 0.01, erratum E5): the
+    # oracle resolves R2's ordering in every tilted dual-2 cell within the caps at mu 0.01
+    # (``benchmarks.r2_map``); the three K_theta of dual_tilt where the tilt is not clipped and
+    # the peg does not wedge. Fixed 2026-11-29 from the oracle's map, before any simulated
+    # result at mu 0.01.
+    "dual_tilt_mu001": Plan(
+        "dual-2",
+        ((100.0, 0.0), (30.0, 0.0), (10.0, 0.0)),
+        (20.0, 0.5),
+        theta0_deg=-0.9,
+        mu=0.01,
+    ),
 }
 REPEATS = 16
 
@@ -131,7 +145,7 @@ def cell(k_rot: float, beta0: float, plan: str = "rect") -> dict:
     """The regime-sweep cell of a :data:`PLANS` entry (same keys as :meth:`Grid.cells`)."""
     return {
         "preset": PLANS[plan].preset,
-        "mu": MU,
+        "mu": PLANS[plan].mu,
         "k_rot_Nm_rad": k_rot,
         "k_lat_N_m": 300.0,
         "delta0_mm": 2.0,
@@ -441,7 +455,7 @@ def mjx_check(
     cfg = _config(geometry, speed_mm_s, step_ms)
     tab = worlds_at(c, MJX_REPEATS, at)
     t0 = time.perf_counter()
-    res = cx.Extraction(c["preset"], cfg, mu=MU).run(progress=False, table=tab)
+    res = cx.Extraction(c["preset"], cfg, mu=c["mu"]).run(progress=False, table=tab)
     tp = res["two_point"]
     return {
         "plan": plan,
@@ -475,7 +489,7 @@ def c_twin(row: dict) -> dict:
     cfg = _config(g, row["speed_mm_s"], row["timestep_ms"])
     peaks, both = [], []
     for i in range(len(tab["L_C"])):
-        trace, settle, dt = pull_c(c["preset"], MU, world(tab, i), row["speed_mm_s"] * MM, cfg)
+        trace, settle, dt = pull_c(c["preset"], c["mu"], world(tab, i), row["speed_mm_s"] * MM, cfg)
         s = summarise(trace, settle, dt, cx.EARLY_MM[g])
         peaks.append(s["peak_fz_late_N"])
         both.append(s["both_walls_frac_in_two_point"])
@@ -696,7 +710,7 @@ def main() -> int:
     ]
     doc = {
         "preset": plan.preset,
-        "mu": MU,
+        "mu": plan.mu,
         "theta0_deg": plan.theta0_deg,
         "engine": f"{engine_of(plan.coulomb_rows)}; the experiment's scene and settings",
         "settings": {

@@ -485,7 +485,11 @@ def r2_map() -> str:
         ]
     stores = [
         (RESULTS / f"pull_speed_{n}.json", rows)
-        for n, rows in (("dual_tilt", "the experiment's"), ("dual_tilt_coulomb", "Coulomb"))
+        for n, rows in (
+            ("dual_tilt", "the experiment's"),
+            ("dual_tilt_coulomb", "Coulomb"),
+            ("dual_tilt_mu001", "the experiment's"),
+        )
     ]
     stores = [(json.loads(p.read_text()), rows) for p, rows in stores if p.exists()]
 
@@ -500,10 +504,10 @@ def r2_map() -> str:
     if stores:
         lines += [
             "",
-            "| K_theta N m/rad | pull mm/s | frictional rows | mean peak F_z N: tip / centre / top "
-            "(oracle) | tip vs top % [95 % CI] (oracle [its CI]) | tip vs centre | centre vs top | "
-            "ordering resolved: simulation / oracle | two-point region mm: tip / centre / top "
-            "(oracle) | both walls loaded, median |",
+            "| K_theta N m/rad | pull mm/s | mu, frictional rows | mean peak F_z N: tip / "
+            "centre / top (oracle) | tip vs top % [95 % CI] (oracle [its CI]) | tip vs centre | "
+            "centre vs top | ordering resolved: simulation / oracle | two-point region mm: "
+            "tip / centre / top (oracle) | both walls loaded, median |",
             "|---|---|---|---|---|---|---|---|---|---|",
         ]
     notes = []
@@ -515,21 +519,23 @@ def r2_map() -> str:
             otp = " / ".join(f"{v:.1f}" for v in c["oracle_two_point_mm"].values())
             both = c["both_walls_frac_median"]
             lines.append(
-                f"| {c['k_rot_Nm_rad']:g} | {c['speed_mm_s']:g} | {rows} | {pk} ({orc}) | "
+                f"| {c['k_rot_Nm_rad']:g} | {c['speed_mm_s']:g} | {d['mu']:g}, {rows} | "
+                f"{pk} ({orc}) | "
                 f"{red(c['reduction_tip_vs_top_pct'])} | {red(c['reduction_tip_vs_centre_pct'])} "
                 f"| {red(c['reduction_centre_vs_top_pct'])} | {resolved(c, 'ci95')} / "
                 f"{resolved(c, 'oracle_ci95')} | {tp} ({otp}) | "
                 f"{'-' if both is None else f'{both:.2f}'} |"
             )
         notes.append(
-            f"{rows} rows: {d['settings']['repeats']} paired repeats per L_C, {d['device']}, "
+            f"mu {d['mu']:g}, {rows} rows: {d['settings']['repeats']} paired repeats per L_C, "
+            f"{d['device']}, "
             f"{d['date'][:10]}, {d['pulls_wall_s'] / 60:.0f} min of pulls (one core each)"
         )
     if stores:
         d = stores[0][0]
         lines += [
             "",
-            f"{d['preset']}, mu {d['mu']:g}, K_lat 300 N/m, delta0 2 mm, beta0 0, theta0 "
+            f"{d['preset']}, K_lat 300 N/m, delta0 2 mm, beta0 0, theta0 "
             f"{d['theta0_deg']:g} deg; {d['engine'].split(';')[0]}; " + "; ".join(notes) + ".",
         ]
     path = RESULTS / "dual_tilt" / "compliance_sweep_dual.json"

@@ -105,6 +105,9 @@ def test_the_tilt_plan_commands_the_thesis_tilt_in_every_world():
         assert c["preset"] == "dual-2" and c["k_lat_N_m"] == 300.0
         assert w["theta0"] == pytest.approx(np.radians(-0.9)) and w["beta0"] == 0.0
     assert ps.cell(3.0, -0.2, "dual")["theta0_deg"] == 0.0
+    # the printed-friction plan carries its mu into every cell, hence into the pulls and oracle
+    assert ps.cell(30.0, 0.0, "dual_tilt_mu001")["mu"] == 0.01
+    assert ps.cell(30.0, 0.0, "dual_tilt")["mu"] == ps.MU
 
 
 def test_the_speed_figure_draws_from_the_committed_results(tmp_path):
