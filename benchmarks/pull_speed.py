@@ -43,6 +43,8 @@ ordering) and the two-point region's length per L_C beside the oracle's::
 from __future__ import annotations
 
 import argparse
+import dataclasses
+import functools
 import json
 import multiprocessing as mp
 import time
@@ -237,13 +239,7 @@ def engine_of(coulomb_rows: bool) -> str:
 
 def _job(args: tuple) -> dict:
     key, c, speed_mm_s, world, oracle, coulomb = args
-    cfg = cx.ExperimentConfig(geometry=_geometry(c))
-    if coulomb:
-        import dataclasses
-
-        cfg = dataclasses.replace(
-            cfg, sim=dataclasses.replace(cfg.sim_options(), friction_timeconst=None)
-        )
+    cfg = _config(_geometry(c), speed_mm_s, None, coulomb)
     t0 = time.perf_counter()
     trace, settle, dt = pull_c(c["preset"], c["mu"], world, speed_mm_s * MM, cfg)
     row = summarise(trace, settle, dt, cx.EARLY_MM[_geometry(c)])
@@ -274,6 +270,13 @@ def jobs(
     return out
 
 
+@functools.cache
+def _oracle_two_point_by_lc(cell_json: str, repeats: int, seed: int) -> tuple[float, ...]:
+    """Mean oracle two-point length per L_C of a cell (JSON), solved once for all its speeds."""
+    c = json.loads(cell_json)
+    return tuple(oracle_two_point_mm(c, sw.cell_table(c, repeats, seed)).reshape(3, -1).mean(1))
+
+
 def reductions(
     rows: dict[str, dict], c: dict, v: float, repeats: int, seed: int = 0
 ) -> dict | None:
@@ -297,6 +300,7 @@ def reductions(
                 both.append(rows[key]["both_walls_frac_in_two_point"])
     ok = np.all(np.isfinite(sim), axis=0)
     tip, centre, top = sim[0, ok], sim[1, ok], sim[2, ok]
+    otp = _oracle_two_point_by_lc(json.dumps(c, sort_keys=True), repeats, seed)
     out = {
         "k_rot_Nm_rad": c["k_rot_Nm_rad"],
         "beta0_deg": c["beta0_deg"],
@@ -310,13 +314,7 @@ def reductions(
         "two_point_mm": dict(
             zip(AT, (windows * cx.ExperimentConfig().record_every_s * v).mean(1), strict=True)
         ),
-        "oracle_two_point_mm": dict(
-            zip(
-                AT,
-                oracle_two_point_mm(c, sw.cell_table(c, repeats, seed)).reshape(3, -1).mean(1),
-                strict=True,
-            )
-        ),
+        "oracle_two_point_mm": dict(zip(AT, otp, strict=True)),
     }
     pairs = {
         "tip_vs_top": (tip, top, orc[0], orc[2]),
@@ -361,8 +359,6 @@ MECHANISM = {
 
 def mechanism_row(name: str) -> dict:
     """One :data:`MECHANISM` variant in MuJoCo C."""
-    import dataclasses
-
     v, zeta, tcf, dr = MECHANISM[name]
     c = cell(3.0, -0.2)
     tab = {k: a[:1] for k, a in worlds_at(c, REPEATS).items()}  # the first repeat
@@ -419,15 +415,18 @@ MJX_CHECKS = (
 MJX_REPEATS = 2
 
 
-def _config(geometry: str, speed_mm_s: float, step_ms: float | None) -> cx.ExperimentConfig:
-    """The experiment's settings at this pull speed (and physics step, if given)."""
-    import dataclasses
-
+def _config(
+    geometry: str, speed_mm_s: float, step_ms: float | None, coulomb_rows: bool = False
+) -> cx.ExperimentConfig:
+    """The experiment's settings at this pull speed (and physics step, if given; frictional
+    rows as stiff as the normal one with ``coulomb_rows``, :attr:`Plan.coulomb_rows`)."""
     cfg = cx.ExperimentConfig(geometry=geometry, speed_m_s=speed_mm_s * MM)
+    sim = cfg.sim_options()
     if step_ms is not None:
-        sim = dataclasses.replace(cfg.sim_options(), timestep=step_ms * 1e-3)
-        cfg = dataclasses.replace(cfg, sim=sim)
-    return cfg
+        sim = dataclasses.replace(sim, timestep=step_ms * 1e-3)
+    if coulomb_rows:
+        sim = dataclasses.replace(sim, friction_timeconst=None)
+    return dataclasses.replace(cfg, sim=sim)
 
 
 def geometry_of(plan: str) -> str:
@@ -628,7 +627,7 @@ def main() -> int:
     ap.add_argument("--mjx-one", help=argparse.SUPPRESS)
     args = ap.parse_args()
     plan = PLANS[args.plan]
-    geometry = PRESETS[plan.preset].kind
+    geometry = geometry_of(args.plan)
     if args.mjx_one:
         _mjx_one(args.mjx_one, args.out)
         return 0
@@ -680,13 +679,13 @@ def main() -> int:
     cells = [cell(k, b, args.plan) for k, b in pairs]
     parts = args.out.with_suffix(".parts.jsonl")
     rows = {}
+    engine = engine_of(plan.coulomb_rows)
     if parts.exists():
         for line in parts.read_text().splitlines():
             if line.strip():
                 r = json.loads(line)
                 # rows from before the engine was recorded had multi-point CCD on, which the
                 # rect scenes never use (identical traces, checked 2026-11-29)
-                engine = engine_of(plan.coulomb_rows)
                 if r.get("engine", ENGINE if geometry == "rect" else None) != engine:
                     raise SystemExit(
                         f"{parts} holds worlds of another replica ({r.get('engine')!r}, this one "
@@ -712,7 +711,7 @@ def main() -> int:
         "preset": plan.preset,
         "mu": plan.mu,
         "theta0_deg": plan.theta0_deg,
-        "engine": f"{engine_of(plan.coulomb_rows)}; the experiment's scene and settings",
+        "engine": f"{engine}; the experiment's scene and settings",
         "settings": {
             "experiment": cx.config_dict(cx.ExperimentConfig(geometry=geometry)),
             "repeats": args.repeats,

@@ -31,7 +31,6 @@ from __future__ import annotations
 import argparse
 import csv
 import json
-import math
 from pathlib import Path
 
 import numpy as np
@@ -46,18 +45,24 @@ from peghole_mjx.provenance import provenance
 
 GRID = sw.GRIDS["dual"]["full"]
 SEED = 0
-#: the largest repeat factor of beta0 (``sweep.repeat_factors``)
-MAX_FACTOR = 1.25
 CLASSES = ("ordered", "tip_below_top", "unresolved", "reversed")
+#: the paired reductions kept per cell, in :func:`classify`'s argument order
+REDUCTIONS = ("tip_vs_top", "tip_vs_centre", "centre_vs_top")
 
 
 def _key(c: dict) -> str:
     return json.dumps(c, sort_keys=True)
 
 
+def ordered(tc_ci: list[float], ct_ci: list[float]) -> bool:
+    """R2's full ordering (tip < centre < top) resolved: the lower ends of the tip-vs-centre
+    and centre-vs-top intervals above 0."""
+    return tc_ci[0] > 0 and ct_ci[0] > 0
+
+
 def classify(tt_ci: list[float], tc_ci: list[float], ct_ci: list[float]) -> str:
     """R2 class of a cell from its paired intervals (tip vs top, tip vs centre, centre vs top)."""
-    if tc_ci[0] > 0 and ct_ci[0] > 0:
+    if ordered(tc_ci, ct_ci):
         return "ordered"
     if tt_ci[0] > 0:
         return "tip_below_top"
@@ -70,11 +75,7 @@ def map_cell(c: dict, repeats: int, seed: int = SEED) -> dict:
     """The oracle's R2 row of one grid cell."""
     tab = sw.cell_table(c, repeats, seed)
     tip, centre, top = oracle_late_peaks(c, tab).reshape(3, repeats)
-    red = {
-        "tip_vs_top": (tip, top),
-        "tip_vs_centre": (tip, centre),
-        "centre_vs_top": (centre, top),
-    }
+    red = dict(zip(REDUCTIONS, ((tip, top), (tip, centre), (centre, top)), strict=True))
     row = {**c, "repeats": repeats}
     row["oracle_peak_fz_N"] = {"tip": tip.mean(), "centre": centre.mean(), "top": top.mean()}
     for name, (a, b) in red.items():
@@ -82,7 +83,7 @@ def map_cell(c: dict, repeats: int, seed: int = SEED) -> dict:
     row["r2_class"] = classify(*(row[f"{n}_pct"]["ci95"] for n in red))
     peak = max(row["oracle_peak_fz_N"].values())
     row["over_force_cap"] = bool(not np.isfinite(peak) or peak > LIMITS.max_force_N[2])
-    tilt = abs(math.radians(c["beta0_deg"]) * MAX_FACTOR + math.radians(c["theta0_deg"]))
+    tilt = float(np.max(np.abs(tab["beta0"] + tab["theta0"])))  # the largest draw's, rad
     row["over_torque_cap"] = bool(c["k_rot_Nm_rad"] * tilt > LIMITS.max_torque_Nm[1])
     return sw.clean_json(row)
 
@@ -170,6 +171,8 @@ def main() -> int:
         for line in parts.read_text().splitlines():
             if line.strip():
                 r = json.loads(line)
+                if r["row"]["repeats"] != args.repeats:
+                    raise SystemExit(f"{parts} holds cells of another --repeats: move it away")
                 done[r["key"]] = r["row"]
     cells = GRID.check().cells()
     with parts.open("a") as f:
@@ -179,8 +182,6 @@ def main() -> int:
             f.write(json.dumps({"key": _key(c), "row": row}) + "\n")
             f.flush()
     rows = [done[_key(c)] for c in cells]
-    if any(r["repeats"] != args.repeats for r in rows):
-        raise SystemExit(f"{parts} holds cells of another --repeats: move it away")
     doc = {
         "what": "the quasi-static oracle's R2 class of every cell of the full dual grid",
         "seed": SEED,
@@ -197,8 +198,7 @@ def main() -> int:
             **{k: r[k] for k in ("preset", "mu", "k_rot_Nm_rad", "k_lat_N_m", "delta0_mm")},
             **{k: r[k] for k in ("beta0_deg", "theta0_deg", "r2_class")},
             **{f"oracle_{k}_N": v for k, v in r["oracle_peak_fz_N"].items()},
-            **{f"{n}_pct": r[f"{n}_pct"]["value"] for n in ("tip_vs_top", "tip_vs_centre")},
-            "centre_vs_top_pct": r["centre_vs_top_pct"]["value"],
+            **{f"{n}_pct": r[f"{n}_pct"]["value"] for n in REDUCTIONS},
             "over_force_cap": r["over_force_cap"],
             "over_torque_cap": r["over_torque_cap"],
         }

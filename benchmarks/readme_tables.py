@@ -462,6 +462,8 @@ def r2_map() -> str:
     """Where the quasi-static oracle predicts R2 over the full dual grid (benchmarks/r2_map.py),
     and the thesis's tilted dual experiment pulled in MuJoCo C (``pull_speed --plan
     dual_tilt``) beside the oracle."""
+    from benchmarks.r2_map import ordered
+
     lines = []
     path = RESULTS / "r2_map.json"
     if path.exists():
@@ -498,7 +500,7 @@ def r2_map() -> str:
         return f"{_ci(x)} ({x['oracle']:.1f} [{lo:.1f}, {hi:.1f}])"
 
     def resolved(c: dict, ci: str) -> str:
-        ok = all(c[f"reduction_{n}_pct"][ci][0] > 0 for n in ("tip_vs_centre", "centre_vs_top"))
+        ok = ordered(c["reduction_tip_vs_centre_pct"][ci], c["reduction_centre_vs_top_pct"][ci])
         return "yes" if ok else "no"
 
     if stores:
@@ -556,8 +558,8 @@ def r2_map() -> str:
         for c in d["cells"]:
             pk = " / ".join(f"{v:.3g}" for v in c["peak_fz_N"].values())
             orc = " / ".join(f"{v:.3g}" for v in c["quasi_static"]["peak_fz_N"].values())
-            ok = all(
-                c[f"reduction_{n}_pct"]["ci95"][0] > 0 for n in ("tip_vs_centre", "centre_vs_top")
+            ok = ordered(
+                c["reduction_tip_vs_centre_pct"]["ci95"], c["reduction_centre_vs_top_pct"]["ci95"]
             )
             pen = c.get("max_penetration_two_point_um")
             lines.append(
