@@ -8,10 +8,11 @@ from __future__ import annotations
 
 import csv
 import importlib.metadata
+import json
 import os
 import platform
 import resource
-from collections.abc import Iterable, Sequence
+from collections.abc import Callable, Iterable, Sequence
 from pathlib import Path
 
 from peghole_mjx.provenance import cpu_device as cpu_device  # re-exported
@@ -142,3 +143,36 @@ def read_csv(path: Path | str) -> list[dict]:
                 row[k] = float(r[k]) if r[k] not in ("", None) else None
             out.append(row)
     return out
+
+
+def read_parts(parts: Path) -> dict[str, dict]:
+    """The rows of a ``.parts.jsonl`` store, by their ``key`` (empty if there is none)."""
+    rows: dict[str, dict] = {}
+    if parts.exists():
+        for line in parts.read_text().splitlines():
+            if line.strip():
+                r = json.loads(line)
+                rows[r["key"]] = r
+    return rows
+
+
+def run_to_parts(
+    job: Callable[[tuple], dict],
+    todo: list[tuple],
+    parts: Path,
+    rows: dict[str, dict],
+    processes: int,
+    desc: str,
+) -> None:
+    """Run ``job`` on every item of ``todo`` in ``processes`` fresh processes, appending each
+    finished row (a dict with a ``key``) to the ``parts`` store as it arrives and to ``rows``:
+    an interrupted run loses at most the rows still running."""
+    import multiprocessing as mp
+
+    from tqdm import tqdm
+
+    with mp.get_context("spawn").Pool(processes) as pool, parts.open("a") as f:
+        for r in tqdm(pool.imap_unordered(job, todo), total=len(todo), desc=desc):
+            rows[r["key"]] = r
+            f.write(json.dumps(r) + "\n")
+            f.flush()

@@ -42,6 +42,7 @@ def pull_c(
     speed_m_s: float,
     cfg: cx.ExperimentConfig | None = None,
     damping_ratio: float | None = None,
+    opt: dict[str, float] | None = None,
 ) -> tuple[np.ndarray, int, float]:
     """One world of the compliance experiment in MuJoCo C (float64): errors ramped in over
     the settling time, then a straight pull at ``speed_m_s`` until the tip is clear.
@@ -49,11 +50,17 @@ def pull_c(
     ``world`` holds the :data:`~peghole_mjx.experiments.compliance.WORLD_KEYS` (SI, rad).
     Returns the per-step trace (:data:`COLUMNS`: tip depth m, normal force on the +x / -x
     wall sides N, largest penetration m, tangential and normal force sums N, extraction force
-    = minus the contacts' vertical force on the peg N), the settling steps and the step."""
+    = minus the contacts' vertical force on the peg N), the settling steps and the step.
+    ``opt``: ``mjOption`` fields set on the compiled model (e.g. ``noslip_iterations``,
+    ``impratio``), for diagnoses of options the experiment does not set."""
     cfg = cfg or cx.ExperimentConfig(geometry=PRESETS[preset].kind)
     spec = dataclasses.replace(PRESETS[preset], friction=mu)
     rep = cfg.representation or cx.REPRESENTATION[spec.kind]
     m = compile_scene(spec, sim=cfg.sim_options(), representation=rep)
+    for k, v in (opt or {}).items():
+        if not hasattr(m.opt, k):
+            raise ValueError(f"unknown mjOption field {k!r}")
+        setattr(m.opt, k, v)
     d = mujoco.MjData(m)
     mujoco.mj_resetDataKeyframe(m, d, m.key("inserted").id)
     mujoco.mj_forward(m, d)

@@ -46,7 +46,6 @@ import argparse
 import dataclasses
 import functools
 import json
-import multiprocessing as mp
 import time
 from dataclasses import dataclass
 from pathlib import Path
@@ -55,7 +54,7 @@ import numpy as np
 from scipy.signal import savgol_filter
 from tqdm import tqdm
 
-from benchmarks.bench_common import RESULTS
+from benchmarks.bench_common import RESULTS, run_to_parts
 from benchmarks.c_replica import COLUMNS, ENGINE, pull_c
 from peghole_mjx.experiments import compliance as cx
 from peghole_mjx.experiments import sweep as sw
@@ -697,11 +696,7 @@ def main() -> int:
     # slow pulls first: the longest jobs start early and the two processes finish together
     todo.sort(key=lambda j: j[2])
     t0 = time.perf_counter()
-    with mp.get_context("spawn").Pool(args.processes) as pool, parts.open("a") as f:
-        for r in tqdm(pool.imap_unordered(_job, todo), total=len(todo), desc="pull speed"):
-            rows[r["key"]] = r
-            f.write(json.dumps(r) + "\n")
-            f.flush()
+    run_to_parts(_job, todo, parts, rows, args.processes, "pull speed")
     summary = [
         s
         for k, b, v in summarised(rows, plan)

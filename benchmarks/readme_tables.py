@@ -540,9 +540,10 @@ def r2_map() -> str:
             f"{d['preset']}, K_lat 300 N/m, delta0 2 mm, beta0 0, theta0 "
             f"{d['theta0_deg']:g} deg; {d['engine'].split(';')[0]}; " + "; ".join(notes) + ".",
         ]
-    path = RESULTS / "dual_tilt" / "compliance_sweep_dual.json"
-    if path.exists():
-        d = json.loads(path.read_text())
+    # the experiment itself in MJX: float32 (the sweep's precision) and the float64 rerun
+    sweeps = [RESULTS / f / "compliance_sweep_dual.json" for f in ("dual_tilt", "dual_tilt_x64")]
+    sweeps = [json.loads(p.read_text()) for p in sweeps if p.exists()]
+    if sweeps:
 
         def sred(c: dict, n: str) -> str:
             x = c[f"reduction_{n}_pct"]
@@ -550,32 +551,84 @@ def r2_map() -> str:
 
         lines += [
             "",
-            "| K_theta N m/rad | mean peak F_z N: tip / centre / top (oracle) | tip vs top % "
-            "[95 % CI] (oracle) | tip vs centre | centre vs top | ordering resolved | deepest "
-            "contact in two-point windows um (limit) | NaN worlds |",
-            "|---|---|---|---|---|---|---|---|",
+            "| precision | K_theta N m/rad | mean peak F_z N: tip / centre / top (oracle) | tip vs "
+            "top % [95 % CI] (oracle) | tip vs centre | centre vs top | ordering resolved | "
+            "deepest contact in two-point windows um (limit) | NaN worlds |",
+            "|---|---|---|---|---|---|---|---|---|",
         ]
-        for c in d["cells"]:
-            pk = " / ".join(f"{v:.3g}" for v in c["peak_fz_N"].values())
-            orc = " / ".join(f"{v:.3g}" for v in c["quasi_static"]["peak_fz_N"].values())
-            ok = ordered(
-                c["reduction_tip_vs_centre_pct"]["ci95"], c["reduction_centre_vs_top_pct"]["ci95"]
+        notes = []
+        for d in sweeps:
+            x = d["settings"]
+            prec = x.get("precision", "float32")
+            for c in d["cells"]:
+                pk = " / ".join(f"{v:.3g}" for v in c["peak_fz_N"].values())
+                orc = " / ".join(f"{v:.3g}" for v in c["quasi_static"]["peak_fz_N"].values())
+                ok = ordered(
+                    c["reduction_tip_vs_centre_pct"]["ci95"],
+                    c["reduction_centre_vs_top_pct"]["ci95"],
+                )
+                pen = c.get("max_penetration_two_point_um")
+                lines.append(
+                    f"| {prec} | {c['k_rot_Nm_rad']:g} | {pk} ({orc}) | {sred(c, 'tip_vs_top')} | "
+                    f"{sred(c, 'tip_vs_centre')} | {sred(c, 'centre_vs_top')} | "
+                    f"{'yes' if ok else 'no'} | {_num(pen, '.1f')} "
+                    f"({c['penetration_limit_um']:.1f}) | {c['nan_worlds']} |"
+                )
+            notes.append(
+                f"{prec}: {sum(c['n_worlds'] for c in d['cells'])} worlds, "
+                f"{x['experiment']['speed_m_s'] * 1e3:g} mm/s, {d['device']}, {d['date'][:10]}"
             )
-            pen = c.get("max_penetration_two_point_um")
-            lines.append(
-                f"| {c['k_rot_Nm_rad']:g} | {pk} ({orc}) | {sred(c, 'tip_vs_top')} | "
-                f"{sred(c, 'tip_vs_centre')} | {sred(c, 'centre_vs_top')} | "
-                f"{'yes' if ok else 'no'} | {_num(pen, '.1f')} ({c['penetration_limit_um']:.1f}) "
-                f"| {c['nan_worlds']} |"
-            )
-        x = d["settings"]
         lines += [
             "",
-            f"The experiment itself (MJX-JAX, `peghole experiment sweep`), the same cells: "
-            f"{sum(c['n_worlds'] for c in d['cells'])} worlds, "
-            f"{x['experiment']['speed_m_s'] * 1e3:g} mm/s, {x.get('precision', 'float32')}, "
-            f"{d['device']}, {d['date'][:10]}.",
+            "The experiment itself (MJX-JAX, `peghole experiment sweep`), the same cells: "
+            + "; ".join(notes)
+            + ".",
         ]
+    return "\n".join(lines)
+
+
+def friction_frontier() -> str:
+    """The friction model between relaxed and Coulomb rows (benchmarks/friction_frontier.py)."""
+    d = json.loads((RESULTS / "friction_frontier.json").read_text())
+    slow, fast = min(c["speed_mm_s"] for c in d["cells"]), max(c["speed_mm_s"] for c in d["cells"])
+    by = {(c["variant"], c["k_rot_Nm_rad"], c["speed_mm_s"]): c for c in d["cells"]}
+    lines = [
+        f"| variant | engines | K_theta N m/rad | mu_eff: {slow:g} / {fast:g} mm/s | both walls "
+        f"loaded: {slow:g} / {fast:g} mm/s | late peak / oracle at {slow:g} mm/s (worlds within "
+        f"15 %) | tip vs top % at {slow:g} mm/s [95 % CI] (oracle) | deepest contact um | "
+        "admissible |",
+        "|---|---|---|---|---|---|---|---|---|",
+    ]
+    for name, v in d["variants"].items():
+        for k in sorted({c["k_rot_Nm_rad"] for c in d["cells"]}, reverse=True):
+            s_, f_ = by.get((name, k, slow)), by.get((name, k, fast))
+            if s_ is None or f_ is None:
+                continue
+            red = s_["reduction_tip_vs_top_pct"]
+            pen = max(s_["penetration_um_max"], f_["penetration_um_max"])
+            adm = d["admissible"].get(name, {}).get("admissible")
+            lines.append(
+                f"| {name} | {v['engines']} | {k:g} | {s_['mu_eff_median']:.3f} / "
+                f"{f_['mu_eff_median']:.3f} | {_num(s_['both_walls_frac_median'], '.2f')} / "
+                f"{_num(f_['both_walls_frac_median'], '.2f')} | "
+                f"{s_['peak_over_oracle_median']:.2f} "
+                f"({s_['oracle_within_15pct_frac'] * 100:.0f} %) | "
+                f"{_ci(red)} ({red['oracle']:.1f}) | {pen:.1f} | {'yes' if adm else 'no'} |"
+            )
+    r = d["rule"]
+    lines += [
+        "",
+        f"{d['preset']}, mu {d['mu']:g}, K_lat 300 N/m, delta0 2 mm, beta0 0, theta0 "
+        f"{d['cell']['theta0_deg']:g} deg, L_C at the tip and the top, the first {d['repeats']} "
+        f"paired draws of the sweep's 16 (seed 0); {d['engine'].split(';')[0]}; {d['device']}, "
+        f"{d['date'][:10]}, {d['pulls_wall_s'] / 60:.0f} min of pulls (one core each). "
+        f"Admissible: both walls loaded in >= {r['both_walls_min'] * 100:.0f} % of the two-point "
+        f"steps at both speeds, and at {slow:g} mm/s mu_eff within "
+        f"{r['mu_eff_rel_tol'] * 100:.0f} % of mu and "
+        f"the late peak within {r['oracle_rel_tol'] * 100:.0f} % of the oracle in >= "
+        f"{r['oracle_frac_min'] * 100:.0f} % of the worlds, the deepest contact under "
+        f"{r['penetration_bound_um']:g} um (fixed {r['fixed']}).",
+    ]
     return "\n".join(lines)
 
 
@@ -1099,6 +1152,7 @@ TABLES = {
     "low_stiffness_check": low_stiffness_check,
     "pull_speed": pull_speed,
     "r2_map": r2_map,
+    "friction_frontier": friction_frontier,
     "throughput": throughput,
     "roofline": roofline,
     "cost": cost,
@@ -1124,6 +1178,7 @@ TABLE_FILES = {
     "low_stiffness_check": "docs/compliance.md",
     "pull_speed": "docs/compliance.md",
     "r2_map": "docs/compliance.md",
+    "friction_frontier": "docs/contact.md",
     "env_rollouts": "docs/envs.md",
     "pretrained": "docs/results.md",
     "force_sources": "docs/results.md",

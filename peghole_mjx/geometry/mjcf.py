@@ -64,7 +64,11 @@ class SimOptions:
     compliance experiment keeps mu_eff 0.26 down to 0.5 mm/s (benchmarks/pull_speed.py), a free
     peg jammed under 80-95 N normal forces at mu 0.01 sliding at 2 mm/s carries 15-39 % less F_z
     than Coulomb rows, and as much at 5 and 20 mm/s (``benchmarks/capsule_fidelity.py
-    jam_envs_friction``, docs/models.md).
+    jam_envs_friction``, docs/models.md). Under the tens of newtons of normal force of the
+    tilted dual experiment at 0.5 mm/s mu_eff falls to 0.04-0.17 at mu 0.266; no friction
+    model of the map in ``benchmarks/friction_frontier.py`` (time constants, Coulomb rows,
+    ``impratio``, no-slip) holds mu there and both walls at 20 mm/s within the experiment's
+    bounds (docs/contact.md).
     ``None``: the frictional rows use ``solref`` (MuJoCo's default).
     """
 
