@@ -213,8 +213,9 @@ DIAGNOSE_WORLD = (100.0, "top", 0)
 
 def diagnose(variant: str, v: float = min(SPEEDS_MM_S)) -> dict:
     """Where the late peak comes from in one world (:data:`DIAGNOSE_WORLD`): the peak F_z, the
-    tip depth at it, and the summed normal force and effective friction coefficient over the
-    20 ms windows around it (+-0.4 s) and at four instants of the pull."""
+    tip depth at it, the summed normal force and effective friction coefficient over the
+    20 ms windows around it (+-0.4 s) and at four instants of the pull, and the normal force
+    and F_z when the pull starts (the errors ramped in, the 20 ms before)."""
     k, at, r = DIAGNOSE_WORLD
     w, oracle = next((w, o) for kk, a, rr, w, o in worlds(r + 1) if (kk, a, rr) == (k, at, r))
     trace, settle, dt = _pull(variant, k, v, w)
@@ -226,13 +227,21 @@ def diagnose(variant: str, v: float = min(SPEEDS_MM_S)) -> dict:
     i = int(np.argmax(np.where(late, fz, -np.inf)))
     win = slice(max(i - 20, 0), i + 21)
     at_frac = {
-        f"{q:g}": {"fz_N": float(fz[j]), "normal_N": float(fn[j]), "mu": float(ft[j] / fn[j])}
+        f"{q:g}": {
+            "fz_N": float(fz[j]),
+            "normal_N": float(fn[j]),
+            "mu": float(ft[j] / fn[j]),
+            "tip_depth_mm": float(m[j, col["depth"]] / MM),
+        }
         for q in (0.2, 0.4, 0.6, 0.8)
         if fn[j := int(q * len(m))] > 0
     }
+    pre = slice(max(settle - n, 0), settle)  # the last 20 ms before the pull starts
     return {
         "variant": variant,
         "world": {"k_rot_Nm_rad": k, "at": at, "repeat": r},
+        "normal_N_at_pull_start": float(trace[pre, col["f_normal"]].mean()),
+        "fz_N_at_pull_start": float(trace[pre, col["fz"]].mean()),
         "speed_mm_s": v,
         "oracle_peak_fz_late_N": oracle,
         "peak_fz_N": float(fz[i]),
