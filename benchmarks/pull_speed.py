@@ -33,6 +33,7 @@ ordering) and the two-point region's length per L_C beside the oracle's::
     python -m benchmarks.pull_speed --plan dual         # dual (--geometry dual is the same)
     python -m benchmarks.pull_speed --plan dual_tilt    # the thesis's tilted dual experiment
     python -m benchmarks.pull_speed --plan dual_tilt_coulomb   # the same, Coulomb friction rows
+    python -m benchmarks.pull_speed --plan dual3_tilt_mu001    # dual-3 at the printed mu 0.01
     python -m benchmarks.pull_speed --speeds 20,5 --repeats 4 --out /tmp/ps.json
     python -m benchmarks.pull_speed --cells 3:0.2 --speeds 1   # one more (cell, speed)
     python -m benchmarks.pull_speed --mjx     # MJX spot checks (float64 and float32)
@@ -138,6 +139,19 @@ PLANS = {
         theta0_deg=-0.9,
         mu=0.01,
     ),
+    # the rest of the oracle's ordered tilted cells at mu 0.01 (K_lat 300 N/m, delta0 2 mm,
+    # beta0 0) within the caps: the tightest preset, dual-3, at every K_theta but the torque-
+    # capped 300, and dual-2 at 3 N m/rad (at mu 0.266 the oracle wedges there; at 0.01 it
+    # predicts 69.5 % tip vs top). Fixed 2026-11-29 from the map alone, after the dual-2 mu 0.01
+    # results (so reported beside them, never in their place) and before any result of these.
+    "dual3_tilt_mu001": Plan(
+        "dual-3",
+        ((100.0, 0.0), (30.0, 0.0), (10.0, 0.0), (3.0, 0.0)),
+        (20.0, 0.5),
+        theta0_deg=-0.9,
+        mu=0.01,
+    ),
+    "dual_tilt_mu001_k3": Plan("dual-2", ((3.0, 0.0),), (20.0, 0.5), theta0_deg=-0.9, mu=0.01),
 }
 REPEATS = 16
 
@@ -410,6 +424,11 @@ MJX_CHECKS = (
     ("dual_tilt", 10.0, 0.0, 0.5, "float64", None, "tip"),
     ("dual_tilt", 10.0, 0.0, 0.5, "float64", None, "centre"),
     ("dual_tilt", 10.0, 0.0, 0.5, "float64", None, "top"),
+    # dual-3 at mu 0.01, K_theta 100 N m/rad, 0.5 mm/s: the replica's worlds split into two
+    # force modes (the tip's all in the low one, the top's mostly in the high one); added
+    # 2026-11-30 after that result, to see whether MJX splits the same worlds the same way
+    ("dual3_tilt_mu001", 100.0, 0.0, 0.5, "float64", None, "tip"),
+    ("dual3_tilt_mu001", 100.0, 0.0, 0.5, "float64", None, "top"),
 )
 MJX_REPEATS = 2
 

@@ -491,6 +491,8 @@ def r2_map() -> str:
             ("dual_tilt", "the experiment's"),
             ("dual_tilt_coulomb", "Coulomb"),
             ("dual_tilt_mu001", "the experiment's"),
+            ("dual_tilt_mu001_k3", "the experiment's"),
+            ("dual3_tilt_mu001", "the experiment's"),
         )
     ]
     stores = [(json.loads(p.read_text()), rows) for p, rows in stores if p.exists()]
@@ -506,11 +508,11 @@ def r2_map() -> str:
     if stores:
         lines += [
             "",
-            "| K_theta N m/rad | pull mm/s | mu, frictional rows | mean peak F_z N: tip / "
+            "| preset | K_theta N m/rad | pull mm/s | mu, frictional rows | mean peak F_z N: tip / "
             "centre / top (oracle) | tip vs top % [95 % CI] (oracle [its CI]) | tip vs centre | "
             "centre vs top | ordering resolved: simulation / oracle | two-point region mm: "
             "tip / centre / top (oracle) | both walls loaded, median |",
-            "|---|---|---|---|---|---|---|---|---|---|",
+            "|---|---|---|---|---|---|---|---|---|---|---|",
         ]
     notes = []
     for d, rows in stores:
@@ -521,7 +523,8 @@ def r2_map() -> str:
             otp = " / ".join(f"{v:.1f}" for v in c["oracle_two_point_mm"].values())
             both = c["both_walls_frac_median"]
             lines.append(
-                f"| {c['k_rot_Nm_rad']:g} | {c['speed_mm_s']:g} | {d['mu']:g}, {rows} | "
+                f"| {d['preset']} | {c['k_rot_Nm_rad']:g} | {c['speed_mm_s']:g} | "
+                f"{d['mu']:g}, {rows} | "
                 f"{pk} ({orc}) | "
                 f"{red(c['reduction_tip_vs_top_pct'])} | {red(c['reduction_tip_vs_centre_pct'])} "
                 f"| {red(c['reduction_centre_vs_top_pct'])} | {resolved(c, 'ci95')} / "
@@ -529,7 +532,8 @@ def r2_map() -> str:
                 f"{'-' if both is None else f'{both:.2f}'} |"
             )
         notes.append(
-            f"mu {d['mu']:g}, {rows} rows: {d['settings']['repeats']} paired repeats per L_C, "
+            f"{d['preset']}, mu {d['mu']:g}, {rows} rows: {d['settings']['repeats']} paired "
+            f"repeats per L_C, "
             f"{d['device']}, "
             f"{d['date'][:10]}, {d['pulls_wall_s'] / 60:.0f} min of pulls (one core each)"
         )
@@ -537,8 +541,8 @@ def r2_map() -> str:
         d = stores[0][0]
         lines += [
             "",
-            f"{d['preset']}, K_lat 300 N/m, delta0 2 mm, beta0 0, theta0 "
-            f"{d['theta0_deg']:g} deg; {d['engine'].split(';')[0]}; " + "; ".join(notes) + ".",
+            f"K_lat 300 N/m, delta0 2 mm, beta0 0, theta0 {d['theta0_deg']:g} deg; "
+            f"{d['engine'].split(';')[0]}; " + "; ".join(notes) + ".",
         ]
     # the experiment itself in MJX: float32 (the sweep's precision) and the float64 rerun
     sweeps = [RESULTS / f / "compliance_sweep_dual.json" for f in ("dual_tilt", "dual_tilt_x64")]
@@ -654,7 +658,7 @@ def _pull_speed_mechanism(m: dict) -> list[str]:
 
 def _pull_speed_mjx(m: dict) -> list[str]:
     """The MJX spot checks beside the MuJoCo C replica on the same worlds (``--mjx``)."""
-    from benchmarks.pull_speed import _check_key
+    from benchmarks.pull_speed import MU, PLANS, _check_key, _plan
     from peghole_mjx.experiments.sweep import reduction_pct
 
     lines = [
@@ -669,7 +673,12 @@ def _pull_speed_mjx(m: dict) -> list[str]:
 
     def name(r: dict) -> str:
         tilt = r.get("theta0_deg", 0.0)
-        return r["preset"] + (f", theta0 {tilt:g} deg" if tilt else "")
+        mu = PLANS[_plan(r)].mu
+        return (
+            r["preset"]
+            + (f", theta0 {tilt:g} deg" if tilt else "")
+            + (f", mu {mu:g}" if mu != MU else "")
+        )
 
     for r in m["rows"]:
         pk, orc, both = _per_world(r)

@@ -108,6 +108,10 @@ def test_the_tilt_plan_commands_the_thesis_tilt_in_every_world():
     # the printed-friction plan carries its mu into every cell, hence into the pulls and oracle
     assert ps.cell(30.0, 0.0, "dual_tilt_mu001")["mu"] == 0.01
     assert ps.cell(30.0, 0.0, "dual_tilt")["mu"] == ps.MU
+    # the dual-3 plan pulls the tighter preset; each tilted plan has its own store name
+    assert ps.cell(10.0, 0.0, "dual3_tilt_mu001")["preset"] == "dual-3"
+    tilted = [n for n, p in ps.PLANS.items() if p.theta0_deg]
+    assert all(ps.PLANS[n].theta0_deg == -0.9 for n in tilted) and len(set(tilted)) >= 5
 
 
 def test_the_speed_figure_draws_from_the_committed_results(tmp_path):
