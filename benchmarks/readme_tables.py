@@ -545,7 +545,10 @@ def r2_map() -> str:
             f"{d['engine'].split(';')[0]}; " + "; ".join(notes) + ".",
         ]
     # the experiment itself in MJX: float32 (the sweep's precision) and the float64 rerun
-    sweeps = [RESULTS / f / "compliance_sweep_dual.json" for f in ("dual_tilt", "dual_tilt_x64")]
+    sweeps = [
+        RESULTS / f / "compliance_sweep_dual.json"
+        for f in ("dual_tilt", "dual_tilt_x64", "dual3_tilt_mu001")
+    ]
     sweeps = [json.loads(p.read_text()) for p in sweeps if p.exists()]
     if sweeps:
 
@@ -555,7 +558,8 @@ def r2_map() -> str:
 
         lines += [
             "",
-            "| precision | K_theta N m/rad | mean peak F_z N: tip / centre / top (oracle) | tip vs "
+            "| preset, mu, precision | K_theta N m/rad | mean peak F_z N: tip / centre / top "
+            "(oracle) | tip vs "
             "top % [95 % CI] (oracle) | tip vs centre | centre vs top | ordering resolved | "
             "deepest contact in two-point windows um (limit) | NaN worlds |",
             "|---|---|---|---|---|---|---|---|---|",
@@ -573,18 +577,21 @@ def r2_map() -> str:
                 )
                 pen = c.get("max_penetration_two_point_um")
                 lines.append(
-                    f"| {prec} | {c['k_rot_Nm_rad']:g} | {pk} ({orc}) | {sred(c, 'tip_vs_top')} | "
+                    f"| {c['preset']}, {c['mu']:g}, {prec} | {c['k_rot_Nm_rad']:g} | "
+                    f"{pk} ({orc}) | "
+                    f"{sred(c, 'tip_vs_top')} | "
                     f"{sred(c, 'tip_vs_centre')} | {sred(c, 'centre_vs_top')} | "
                     f"{'yes' if ok else 'no'} | {_num(pen, '.1f')} "
                     f"({c['penetration_limit_um']:.1f}) | {c['nan_worlds']} |"
                 )
             notes.append(
-                f"{prec}: {sum(c['n_worlds'] for c in d['cells'])} worlds, "
+                f"{d['cells'][0]['preset']}, mu {d['cells'][0]['mu']:g}, {prec}: "
+                f"{sum(c['n_worlds'] for c in d['cells'])} worlds, "
                 f"{x['experiment']['speed_m_s'] * 1e3:g} mm/s, {d['device']}, {d['date'][:10]}"
             )
         lines += [
             "",
-            "The experiment itself (MJX-JAX, `peghole experiment sweep`), the same cells: "
+            "The experiment itself (MJX-JAX, `peghole experiment sweep`), the tilted cells: "
             + "; ".join(notes)
             + ".",
         ]
