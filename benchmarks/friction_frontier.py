@@ -47,7 +47,15 @@ from tqdm import tqdm
 
 from benchmarks.bench_common import RESULTS, read_parts, run_to_parts
 from benchmarks.c_replica import COLUMNS, ENGINE, pull_c
-from benchmarks.pull_speed import AT, _config, cell, oracle_late_peaks, summarise, world
+from benchmarks.pull_speed import (
+    AT,
+    _config,
+    cell,
+    oracle_late_peaks,
+    summarise,
+    windows,
+    world,
+)
 from peghole_mjx.experiments import compliance as cx
 from peghole_mjx.experiments import sweep as sw
 from peghole_mjx.fileio import write_text
@@ -104,11 +112,10 @@ def _key(variant: str, k: float, v: float, at: str, r: int) -> str:
 def _pull(variant: str, k: float, v: float, w: dict) -> tuple[np.ndarray, int, float]:
     """One world pulled at ``v`` mm/s with a :data:`VARIANTS` friction model (MuJoCo C)."""
     tcf, opt, _ = VARIANTS[variant]
-    cfg = _config("dual", v, None, coulomb_rows=tcf is None)
-    if tcf is not None:
-        cfg = dataclasses.replace(
-            cfg, sim=dataclasses.replace(cfg.sim_options(), friction_timeconst=tcf)
-        )
+    cfg = _config("dual", v, None)
+    # None: rows as stiff as the normal one (SimOptions' own meaning of None)
+    sim = dataclasses.replace(cfg.sim_options(), friction_timeconst=tcf)
+    cfg = dataclasses.replace(cfg, sim=sim)
     c = cell(k, 0.0, PLAN)
     return pull_c(c["preset"], c["mu"], w, v * MM, cfg, opt=opt)
 
@@ -131,7 +138,7 @@ def _job(args: tuple) -> dict:
     }
 
 
-def summary(rows: list[dict], mu: float, repeats: int) -> list[dict]:
+def summary(rows: list[dict], repeats: int) -> list[dict]:
     """Per (variant, K_theta, speed): the medians, the oracle agreement and the tip-vs-top
     reduction (paired over the repeats) beside the oracle's."""
     out = []
@@ -147,7 +154,8 @@ def summary(rows: list[dict], mu: float, repeats: int) -> list[dict]:
                     continue
                 by = {(r["at"], r["repeat"]): r for r in sel}
                 peak = np.array(
-                    [[by[a, i]["peak_fz_late_N"] or np.nan for i in range(repeats)] for a in LCS]
+                    [[by[a, i]["peak_fz_late_N"] for i in range(repeats)] for a in LCS],
+                    dtype=float,  # None (a NaN world) -> nan
                 )
                 orc = np.array(
                     [[by[a, i]["oracle_peak_fz_late_N"] for i in range(repeats)] for a in LCS]
@@ -220,8 +228,8 @@ def diagnose(variant: str, v: float = min(SPEEDS_MM_S)) -> dict:
     w, oracle = next((w, o) for kk, a, rr, w, o in worlds(r + 1) if (kk, a, rr) == (k, at, r))
     trace, settle, dt = _pull(variant, k, v, w)
     col = {c: i for i, c in enumerate(COLUMNS)}
-    n = round(cx.ExperimentConfig().record_every_s / dt)
-    m = trace[: len(trace) // n * n].reshape(-1, n, trace.shape[1]).mean(1)
+    n, w = windows(trace, dt)
+    m = w.mean(1)
     fz, fn, ft = m[:, col["fz"]], m[:, col["f_normal"]], m[:, col["f_tangential"]]
     late = np.arange(len(m)) * n > settle
     i = int(np.argmax(np.where(late, fz, -np.inf)))
@@ -297,7 +305,7 @@ def main() -> int:
     t0 = time.perf_counter()
     run_to_parts(_job, todo, parts, rows, args.processes, "friction")
     kept = [r for r in rows.values() if r["repeat"] < args.repeats]
-    cells = summary(kept, mu, args.repeats)
+    cells = summary(kept, args.repeats)
     old = json.loads(args.out.read_text()) if args.out.exists() else {}
     doc = {
         "preset": cell(K_ROT[0], 0.0, PLAN)["preset"],

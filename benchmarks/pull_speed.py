@@ -55,7 +55,7 @@ import numpy as np
 from scipy.signal import savgol_filter
 from tqdm import tqdm
 
-from benchmarks.bench_common import RESULTS, run_to_parts
+from benchmarks.bench_common import RESULTS, read_parts, run_to_parts
 from benchmarks.c_replica import COLUMNS, ENGINE, pull_c
 from peghole_mjx.experiments import compliance as cx
 from peghole_mjx.experiments import sweep as sw
@@ -169,12 +169,17 @@ def cell(k_rot: float, beta0: float, plan: str = "rect") -> dict:
     }
 
 
+def windows(trace: np.ndarray, dt: float) -> tuple[int, np.ndarray]:
+    """The trace cut into the experiment's 20 ms recording windows: (steps per window, array
+    windows x steps x columns; a last partial window dropped)."""
+    k = round(cx.ExperimentConfig().record_every_s / dt)
+    return k, trace[: len(trace) // k * k].reshape(-1, k, trace.shape[1])
+
+
 def summarise(trace: np.ndarray, settle: int, dt: float, skip_mm: float) -> dict:
     """Late peak F_z (20 ms means, Savitzky-Golay filtered, the first ``skip_mm`` of the pull
     left out), both-walls fraction inside two-point windows, penetration."""
-    k = round(cx.ExperimentConfig().record_every_s / dt)
-    n = len(trace) // k * k
-    w = trace[:n].reshape(-1, k, trace.shape[1])
+    k, w = windows(trace, dt)
     col = {c: i for i, c in enumerate(COLUMNS)}
     mean = w.mean(1)
     fz = mean[:, col["fz"]]
@@ -696,20 +701,16 @@ def main() -> int:
             raise SystemExit("--cells takes K_THETA:BETA0 pairs with K_THETA > 0")
     cells = [cell(k, b, args.plan) for k, b in pairs]
     parts = args.out.with_suffix(".parts.jsonl")
-    rows = {}
+    rows = read_parts(parts)
     engine = engine_of(plan.coulomb_rows)
-    if parts.exists():
-        for line in parts.read_text().splitlines():
-            if line.strip():
-                r = json.loads(line)
-                # rows from before the engine was recorded had multi-point CCD on, which the
-                # rect scenes never use (identical traces, checked 2026-11-29)
-                if r.get("engine", ENGINE if geometry == "rect" else None) != engine:
-                    raise SystemExit(
-                        f"{parts} holds worlds of another replica ({r.get('engine')!r}, this one "
-                        f"is {engine!r}): move it away to start afresh"
-                    )
-                rows[r["key"]] = r
+    for r in rows.values():
+        # rows from before the engine was recorded had multi-point CCD on, which the rect
+        # scenes never use (identical traces, checked 2026-11-29)
+        if r.get("engine", ENGINE if geometry == "rect" else None) != engine:
+            raise SystemExit(
+                f"{parts} holds worlds of another replica ({r.get('engine')!r}, this one is "
+                f"{engine!r}): move it away to start afresh"
+            )
     todo = jobs(cells, speeds, args.repeats, args.seed, plan.coulomb_rows)
     todo = [j for j in todo if j[0] not in rows]
     # slow pulls first: the longest jobs start early and the two processes finish together

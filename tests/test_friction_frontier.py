@@ -49,7 +49,7 @@ def _rows(variant: str, repeats: int, tip: float, top: float, **over) -> list[di
 
 
 def test_the_summary_pairs_tip_and_top_by_repeat():
-    cells = ff.summary(_rows("Coulomb rows", 4, 1.0, 2.0), 0.266, 4)
+    cells = ff.summary(_rows("Coulomb rows", 4, 1.0, 2.0), 4)
     assert len(cells) == len(ff.K_ROT) * len(ff.SPEEDS_MM_S)
     for c in cells:
         red = c["reduction_tip_vs_top_pct"]
@@ -58,16 +58,16 @@ def test_the_summary_pairs_tip_and_top_by_repeat():
         assert c["oracle_within_15pct_frac"] == 1.0
     # a world missing: the (variant, K_theta, speed) is left out, not summarised on fewer
     rows = _rows("Coulomb rows", 4, 1.0, 2.0)[1:]
-    assert len(ff.summary(rows, 0.266, 4)) == len(ff.K_ROT) * len(ff.SPEEDS_MM_S) - 1
+    assert len(ff.summary(rows, 4)) == len(ff.K_ROT) * len(ff.SPEEDS_MM_S) - 1
 
 
 def test_the_rule_names_each_violated_condition():
     """A variant meeting every bound is admissible; one whose slow pull loses friction, or whose
     fast pull bounces, is not, and the reason names the bound and the cell."""
-    ok = ff.summary(_rows("relaxed 0.3 s", 2, 1.0, 2.0), 0.266, 2)
+    ok = ff.summary(_rows("relaxed 0.3 s", 2, 1.0, 2.0), 2)
     slow = ff.summary(_rows("relaxed 1 s (the experiment's)", 2, 1.0, 2.0,
-                            mu_eff={0.5: 0.10}), 0.266, 2)  # fmt: skip
-    fast = ff.summary(_rows("Coulomb rows", 2, 1.0, 2.0, both={20.0: 0.3}), 0.266, 2)
+                            mu_eff={0.5: 0.10}), 2)  # fmt: skip
+    fast = ff.summary(_rows("Coulomb rows", 2, 1.0, 2.0, both={20.0: 0.3}), 2)
     adm = ff.admissible(ok + slow + fast, 0.266)
     assert adm["relaxed 0.3 s"] == {"admissible": True, "fails": []}
     assert not adm["relaxed 1 s (the experiment's)"]["admissible"]
