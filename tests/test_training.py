@@ -380,7 +380,8 @@ def test_hard_variant_configs_are_the_base_configs_but_for_their_stated_changes(
     """train/configs/*Hard.json copy RectExtract's / DualExtract's hyperparameters; the only
     differences are the ones their descriptions state (decided before training)."""
     stated = {
-        ("RectExtractHard", "cpu"): {"num_timesteps": (100000, 60000)},
+        ("RectExtractHard", "cpu"): {"env_overrides": ("action.max_ff_xy_N", 2.0)},
+        ("RectExtractHard", "full"): {"env_overrides": ("action.max_ff_xy_N", 2.0)},
         ("DualExtractHard", "cpu"): {"env_overrides": "episode_length"},  # env's own 8 s
     }
     for hard, base in (("RectExtractHard", "RectExtract"), ("DualExtractHard", "DualExtract")):
@@ -392,10 +393,14 @@ def test_hard_variant_configs_are_the_base_configs_but_for_their_stated_changes(
             assert diff == set(want), (hard, profile, diff)
             if "num_timesteps" in want:
                 assert (b["num_timesteps"], h["num_timesteps"]) == want["num_timesteps"]
-            if "env_overrides" in want:
-                gone = want["env_overrides"]
-                assert gone in b["env_overrides"] and gone not in h["env_overrides"]
-                b["env_overrides"].pop(gone)
+            if want.get("env_overrides") == "episode_length":  # dropped by the hard variant
+                assert "episode_length" in b["env_overrides"]
+                assert "episode_length" not in h["env_overrides"]
+                b["env_overrides"].pop("episode_length")
+                assert h["env_overrides"] == b["env_overrides"]
+            elif "env_overrides" in want:  # added by the hard variant
+                key, value = want["env_overrides"]
+                assert key not in b["env_overrides"] and h["env_overrides"].pop(key) == value
                 assert h["env_overrides"] == b["env_overrides"]
 
 
