@@ -37,6 +37,7 @@ PROBE_BASE = {
     "obs.torques": True,
     "obs.stiffness": True,
     "obs.prev_action": True,
+    "obs.commands": True,
     "reward_config.w_stf_rot": 0.5,
     "reward_config.w_fz": 0.5,
 }
@@ -86,9 +87,11 @@ def probe_obs(c):
         "k_rot": 30.0,
         "L_C": 0.01,
         "prev_action": ACTION,
+        "wrench_ff": jnp.array([1.5, -2.0, 30.0]),
     }
     pos, rot = jnp.array([1e-3, -2e-3, 0.12]), jnp.array([0.01, -0.02, 0.003])
-    return _flat(extraction.observation(pos, rot, info, c, 0.1, PEG_LENGTH_M))
+    cmd_offset = jnp.array([0.4e-3, -0.1e-3, 2e-3])
+    return _flat(extraction.observation(pos, rot, info, c, 0.1, PEG_LENGTH_M, cmd_offset))
 
 
 def probe_reward(c):
@@ -146,6 +149,7 @@ PURE = {
     "obs.torques": (False, [probe_obs]),
     "obs.stiffness": (False, [probe_obs]),
     "obs.prev_action": (False, [probe_obs]),
+    "obs.commands": (False, [probe_obs]),
     "obs.force_scale_N": (10.0, [probe_obs]),
     "obs.torque_scale_Nm": (1.0, [probe_obs]),
     "obs.k_xy_scale_N_m": (500.0, [probe_obs]),
@@ -349,3 +353,16 @@ def test_geometry_entry_changes_the_preset_spec_and_refuses_bad_changes():
         with pytest.raises(UserInputError, match=match) as err:
             apply_overrides(default, {"geometry": bad})
         assert "\n" not in str(err.value)
+
+
+def test_observed_commands_are_the_feed_forward_and_the_commanded_tip_offset():
+    """``obs.commands``: at reset the feed-forward is 0 and the commanded tip sits at the
+    drawn lateral error from the tip (hole frame), exactly what reset commands."""
+    env = envs.load(ENV, config_overrides={"obs.commands": True})
+    key = jax.random.PRNGKey(3)
+    obs = np.asarray(jax.jit(env.reset)(key).obs)
+    assert env.observation_size == envs.load(ENV).observation_size + 6 == obs.shape[0]
+    draw = randomization_fn(key, env.config.randomization, env.fixed_compliance["k_xy"])
+    np.testing.assert_array_equal(obs[-6:-3], 0.0)
+    np.testing.assert_allclose(obs[-3:], np.asarray(draw.lateral_error) * 1e3, atol=1e-4)
+    assert np.linalg.norm(obs[-3:-1]) > 0.01  # a real lateral error, in mm

@@ -111,6 +111,10 @@ def base_config(preset: str) -> config_dict.ConfigDict:
             torques=False,
             stiffness=False,
             prev_action=False,
+            # the accumulated feed-forward force and the commanded tip minus the tip (6
+            # entries): the integrators of actions 0-5, which eq (4.2)'s state leaves hidden
+            # (docs/training.md, "Self-inflicted failures")
+            commands=False,
             force_scale_N=LIMITS.max_force_N[0],
             torque_scale_Nm=LIMITS.max_torque_Nm[0],
             # with stiffness: k_xy and K_theta in units of these (L_C in units of the peg

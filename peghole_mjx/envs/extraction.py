@@ -105,10 +105,18 @@ def impedance_params(
 
 
 def observation(
-    pos, rot, info, c: config_dict.ConfigDict, flange_z0_m: float, peg_length_m: float
+    pos,
+    rot,
+    info,
+    c: config_dict.ConfigDict,
+    flange_z0_m: float,
+    peg_length_m: float,
+    cmd_offset_m=None,
 ) -> jax.Array:
     """The observation (table of :class:`PegHoleEnv`) from the flange pose (hole frame:
-    position ``pos`` in m, tilt ``rot`` as a rotation vector in rad) and ``info``."""
+    position ``pos`` in m, tilt ``rot`` as a rotation vector in rad) and ``info``;
+    ``cmd_offset_m``: the commanded tip minus the tip (hole frame, m), read with
+    ``obs.commands``."""
     o = c.obs
     f, t = info["wrench"][:3], info["wrench"][3:]
     parts = [
@@ -131,6 +139,9 @@ def observation(
         )
     if o.prev_action:
         parts.append(info["prev_action"])
+    if o.commands:  # the two integrators the actions drive, otherwise hidden from the policy
+        parts.append(info["wrench_ff"] / o.force_scale_N)
+        parts.append(cmd_offset_m / MM)
     obs = jnp.concatenate(parts)
     return jnp.where(jnp.isfinite(obs), obs, 0.0)
 
@@ -161,7 +172,8 @@ class PegHoleEnv(PegHoleBase):
     | 3-5 | F/T sensor force Fx, Fy, Fz (peg weight removed) | / 20 N |
     | 6-8 | flange tilt theta, phi, psi (rotation vector vs. straight down) | deg |
     | + | optional: torques (/3 N m), k_xy (/1000 N/m), K_theta (/300 N m/rad), L_C (/L), | |
-    |   | previous action | |
+    |   | previous action; commands: the accumulated feed-forward force (/20 N, hole | |
+    |   | frame) and the commanded tip minus the tip (mm, hole frame) | |
 
     Action (eq 4.3), each in [-1, 1]:
 
@@ -286,7 +298,12 @@ class PegHoleEnv(PegHoleBase):
 
     def _obs(self, d, info) -> jax.Array:
         pos, rot = self._flange_pose(d, info)
-        return observation(pos, rot, info, self._config, self._flange_z0, self.peg_length_m)
+        cmd_offset = None
+        if self._config.obs.commands:
+            cmd_offset = info["hole_mat"].T @ (info["cmd_tip"] - self._tip_world(d))
+        return observation(
+            pos, rot, info, self._config, self._flange_z0, self.peg_length_m, cmd_offset
+        )
 
     def _physics(self, data, info, cmd_tip_prev, cmd_tip, wrench_ff, k_xy, k_rot, L_C):
         """Run the substeps with the impedance law tracking a linearly moving target."""
