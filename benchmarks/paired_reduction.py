@@ -96,7 +96,10 @@ def analyse(
             reduction_pct(p[s : s + slice_size], b[s : s + slice_size]) for s in slices
         ],
         "chosen_on_episodes": chosen_on,
-        "reduction_pct_not_chosen_on": reduction_pct(p[chosen_on:], b[chosen_on:]),
+        # None when every episode was used to choose the policy (none left out)
+        "reduction_pct_not_chosen_on": (
+            reduction_pct(p[chosen_on:], b[chosen_on:]) if chosen_on < len(p) else None
+        ),
         "bootstrap": paired_bootstrap(p, b),
         "share_of_episodes_policy_lower": float((p < b).mean()),
         "both_succeed": {

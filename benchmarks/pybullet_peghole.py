@@ -144,6 +144,7 @@ REQUIRED = {
     "compliance_strategy": False,
     "learn_compliance_centre": False,
     "obs.prev_action": False,
+    "obs.commands": False,
     "obs.stiffness": False,
     "obs.torques": False,
     "geometry": "",

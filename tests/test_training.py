@@ -284,7 +284,12 @@ def test_kill_9_then_resume_continues_from_last_checkpoint(trained, tmp_path):
     deadline = time.time() + 600
     ckpt = None
     while time.time() < deadline and proc.poll() is None:
-        done = sorted(out.glob("checkpoints/step_*/state.json"))
+        # a finished checkpoint: step_N/ (step_N.tmp/ is one being written, not yet sealed)
+        done = sorted(
+            p
+            for p in out.glob("checkpoints/step_*/state.json")
+            if not p.parent.name.endswith(".tmp")
+        )
         if done:
             ckpt = done[-1].parent
             break
@@ -376,12 +381,16 @@ def test_every_registered_env_has_a_training_config_for_every_profile():
             assert cfg.env == env and cfg.profile == profile
 
 
+#: RectExtractHard's training settings beyond RectExtract's (docs/training.md, "Three recipes")
+RECT_HARD_ADDED = {"action.max_ff_xy_N": 2.0, "obs.commands": True}
+
+
 def test_hard_variant_configs_are_the_base_configs_but_for_their_stated_changes():
     """train/configs/*Hard.json copy RectExtract's / DualExtract's hyperparameters; the only
     differences are the ones their descriptions state (decided before training)."""
     stated = {
-        ("RectExtractHard", "cpu"): {"env_overrides": ("action.max_ff_xy_N", 2.0)},
-        ("RectExtractHard", "full"): {"env_overrides": ("action.max_ff_xy_N", 2.0)},
+        ("RectExtractHard", "cpu"): {"env_overrides": RECT_HARD_ADDED},
+        ("RectExtractHard", "full"): {"env_overrides": RECT_HARD_ADDED},
         ("DualExtractHard", "cpu"): {"env_overrides": "episode_length"},  # env's own 8 s
     }
     for hard, base in (("RectExtractHard", "RectExtract"), ("DualExtractHard", "DualExtract")):
@@ -399,8 +408,8 @@ def test_hard_variant_configs_are_the_base_configs_but_for_their_stated_changes(
                 b["env_overrides"].pop("episode_length")
                 assert h["env_overrides"] == b["env_overrides"]
             elif "env_overrides" in want:  # added by the hard variant
-                key, value = want["env_overrides"]
-                assert key not in b["env_overrides"] and h["env_overrides"].pop(key) == value
+                for key, value in want["env_overrides"].items():
+                    assert key not in b["env_overrides"] and h["env_overrides"].pop(key) == value
                 assert h["env_overrides"] == b["env_overrides"]
 
 
@@ -429,3 +438,24 @@ def test_training_budget_stops_the_run_after_a_last_evaluation(tmp_path):
     with (tmp_path / "run" / "metrics.csv").open() as f:
         rows = list(csv.DictReader(f))
     assert [int(r["step"]) for r in rows] == [0, summary["env_steps"]]  # the last evaluation
+
+
+def test_baseline_slices_are_keyed_without_what_the_baseline_never_uses():
+    """The scripted baseline's constant action ignores the observation and its feed-forward
+    and offset settings: envs differing only there share its slices; a pull-speed bound
+    (which changes no scripted action either, but is not listed) and the reward do not."""
+    from types import SimpleNamespace
+
+    from peghole_mjx.envs import get_default_config
+    from peghole_mjx.envs.config import apply_overrides
+    from peghole_mjx.training.evaluate import BASELINE_IGNORED_CONFIG, _config_key
+
+    def key(over):
+        cfg = apply_overrides(get_default_config("RectExtractHard"), over)
+        return _config_key(SimpleNamespace(config=cfg), BASELINE_IGNORED_CONFIG)
+
+    base = key({})
+    assert key({"obs.commands": True, "obs.torques": True}) == base
+    assert key({"action.max_ff_xy_N": 2.0}) == base
+    assert key({"reward_config.w_stf_rot": 0.5}) != base
+    assert key({"randomization.angular_error_deg": 1.0}) != base

@@ -38,12 +38,15 @@ def force_reduction_pct(policy: dict[str, Any], baseline: dict[str, Any]) -> flo
 
 #: env-config entries that cannot change a scripted-baseline episode: its lateral offset and
 #: feed-forward actions are 0, so the commanded offset stays 0 and the feed-forward stays 0
-#: whatever their step sizes and bounds. Left out of the baseline's slice key, so policies
-#: trained with different feed-forward settings share one baseline (same episodes).
+#: whatever their step sizes and bounds; its action is constant, so what the observation
+#: holds (``obs``) changes nothing it does or records. Left out of the baseline's slice key,
+#: so policies trained with different feed-forward or observation settings share one
+#: baseline (same episodes).
 BASELINE_IGNORED_CONFIG = (
     "action.max_step_offset_mm",
     "action.max_force_step_N",
     "action.max_ff_xy_N",
+    "obs",
 )
 
 
