@@ -31,6 +31,7 @@ import numpy as np
 import peghole_mjx  # noqa: F401  (sets the XLA CPU flag before JAX starts)
 from benchmarks.bench_common import RESULTS, cpu_label
 from benchmarks.hard_variants import failure_causes
+from peghole_mjx.envs.rollout import episode_keys
 from peghole_mjx.errors import UserInputError
 from peghole_mjx.policies import load_policy
 from peghole_mjx.provenance import provenance
@@ -45,13 +46,13 @@ AT_BOUND = 0.99
 def trace(bundle, env, episodes: int, seed: int, chunk: int = 25, progress: bool = True):
     """``(per_step, ended)``: per-step arrays ``(steps, episodes[, 3])`` of :data:`TRACED`
     up to the longest episode, and the env metrics at each episode's end (keys of
-    ``State.metrics``). The start states are those of ``rollout(..., seed=seed)``."""
+    ``State.metrics``). The start states are those of ``rollout(..., seed=seed)``
+    (:func:`peghole_mjx.envs.rollout.episode_keys`)."""
     from tqdm import tqdm
 
     policy = bundle.policy_fn()
-    rng = jax.random.PRNGKey(seed)
-    rng, key = jax.random.split(rng)
-    states = jax.jit(jax.vmap(env.reset))(jax.random.split(key, episodes))
+    rng, reset_keys = episode_keys(seed, episodes)
+    states = jax.jit(jax.vmap(env.reset))(reset_keys)
     start = states.info["cmd_tip"]
     pull_index = 2  # the action's dz entry (extraction.decode_action)
 
@@ -72,7 +73,7 @@ def trace(bundle, env, episodes: int, seed: int, chunk: int = 25, progress: bool
             "k_rot": n.info["k_rot"],
             "ff": n.info["wrench_ff"],
             "offset_mm": 1e3 * jnp.linalg.norm((n.info["cmd_tip"] - start)[:, :2], axis=-1),
-            "pull": jnp.clip(a[:, pull_index], -1.0, 1.0),
+            "pull": n.info["prev_action"][:, pull_index],  # the action as applied
             "depth_mm": n.metrics["depth_mm"],
         }
         return (n, ended, finished | done_now, rng), rec

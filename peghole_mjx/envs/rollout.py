@@ -141,6 +141,14 @@ def make_runner(env: PegHoleEnv, policy: Callable, chunk: int, with_params: bool
     return jax.jit(reset), jax.jit(run)
 
 
+def episode_keys(seed: int, episodes: int) -> tuple[jax.Array, jax.Array]:
+    """``(rng, reset_keys)`` of a rollout with ``seed``: the key its policy draws from and the
+    ``episodes`` reset keys (episode i starts from ``reset_keys[i]`` in every rollout of this
+    seed, whatever the episode count or batch)."""
+    rng, key = jax.random.split(jax.random.PRNGKey(seed))
+    return rng, jax.random.split(key, episodes)
+
+
 def rollout(
     env: PegHoleEnv,
     policy: Policy,
@@ -169,9 +177,7 @@ def rollout(
     if not jax.config.jax_threefry_partitionable:
         raise RuntimeError("rollout needs jax_threefry_partitionable=True (prefix-stable keys)")
     batch = episodes if batch is None else max(1, min(batch, episodes))
-    rng = jax.random.PRNGKey(seed)
-    rng, key = jax.random.split(rng)
-    reset_keys = jax.random.split(key, episodes)
+    rng, reset_keys = episode_keys(seed, episodes)
     parts = Path(parts_dir) if parts_dir is not None else None
     if parts is not None:
         parts.mkdir(parents=True, exist_ok=True)
