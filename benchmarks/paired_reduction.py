@@ -1,10 +1,19 @@
 """Per-episode comparison of a policy with the scripted baseline on the same episodes.
 
     python -m benchmarks.paired_reduction export POLICY_PARTS BASELINE_PARTS --out EPISODES.csv
+    python -m benchmarks.paired_reduction export POLICY_PARTS [BASELINE_PARTS] \
+        --baseline-csv EARLIER.csv --out EPISODES.csv
     python -m benchmarks.paired_reduction analyse EPISODES.csv --chosen-on 64 --out PAIRED.json
 
 ``export`` writes the per-episode records that ``peghole evaluate --parts DIR`` saved
-(``DIR/policy-<sha>-<cfg>/`` and ``DIR/baseline/``) as one CSV row per episode. ``analyse`` gives
+(``DIR/policy-<sha>-<cfg>/`` and ``DIR/baseline/``) as one CSV row per episode. With
+``--baseline-csv`` the baseline's columns come from an earlier export of the same env, seed and
+batch (the scripted baseline is deterministic and its episodes are prefix-stable, so a policy
+evaluated ``--policy-only`` pairs with it); a ``BASELINE_PARTS`` given as well (e.g. the first
+slice rerun) must reproduce that file's first rows bit for bit, else the export stops. Rerun
+the check: a setting the baseline ignores (``BASELINE_IGNORED_CONFIG``, e.g. ``obs``) still
+changes the compiled program, and in the dual scene that changed the float32 rounding of every
+episode (2026-11-30: up to 0.0058 N of a 0.1 N mean F_z). ``analyse`` gives
 the mean-|F_z| reduction (the thesis's R3 measure, as ``peghole evaluate``) over all episodes,
 per slice, on the episodes not used to choose the policy (``--chosen-on N``: episodes 0 to
 N-1 of this seed were), a paired bootstrap interval (episodes resampled, policy and baseline
@@ -39,10 +48,45 @@ def load_parts(folder: Path) -> dict[str, np.ndarray]:
     return {k: np.concatenate([z[k] for z in loaded]) for k in COLUMNS}
 
 
-def export(policy_dir: Path, baseline_dir: Path, out: Path) -> None:
+def load_baseline_csv(path: Path) -> dict[str, np.ndarray]:
+    """The ``baseline_<column>`` columns of an earlier ``export``, in episode order."""
+    with open(path) as f:
+        rows = list(csv.DictReader(f))
+    if not rows or any(f"baseline_{c}" not in rows[0] for c in COLUMNS):
+        raise SystemExit(f"{path} has no baseline_<column> rows of an export")
+    if [int(r["episode"]) for r in rows] != list(range(len(rows))):
+        raise SystemExit(f"{path}: episodes are not 0, 1, 2, ... in order")
+    return {c: np.array([float(r[f"baseline_{c}"]) for r in rows], np.float32) for c in COLUMNS}
+
+
+def export(
+    policy_dir: Path, baseline_dir: Path | None, out: Path, baseline_csv: Path | None = None
+) -> None:
     """One CSV row per episode: ``policy_<column>`` and ``baseline_<column>``."""
-    pol, base = load_parts(policy_dir), load_parts(baseline_dir)
+    if baseline_dir is None and baseline_csv is None:
+        raise SystemExit("give BASELINE_PARTS, --baseline-csv, or both")
+    pol = load_parts(policy_dir)
     n = len(pol["mean_fz_N"])
+    if baseline_csv is None:
+        base = load_parts(baseline_dir)
+    else:
+        base = load_baseline_csv(baseline_csv)
+        if len(base["mean_fz_N"]) < n:
+            raise SystemExit(
+                f"{n} policy episodes but {baseline_csv} holds {len(base['mean_fz_N'])}"
+            )
+        base = {c: v[:n] for c, v in base.items()}
+        if baseline_dir is not None:  # a rerun prefix must reproduce the file
+            rerun = load_parts(baseline_dir)
+            m = len(rerun["mean_fz_N"])
+            for c in COLUMNS:
+                bad = np.flatnonzero(rerun[c][:n].astype(np.float32) != base[c][:m])
+                if bad.size:
+                    i = int(bad[0])
+                    raise SystemExit(
+                        f"{baseline_dir} episode {i} {c} = {rerun[c][i]} but {baseline_csv} "
+                        f"has {base[c][i]}: not the same baseline episodes"
+                    )
     if len(base["mean_fz_N"]) != n:
         raise SystemExit(f"{n} policy episodes but {len(base['mean_fz_N'])} baseline episodes")
     with open(out, "w", newline="") as f:
@@ -119,7 +163,12 @@ def main() -> None:
     sub = ap.add_subparsers(dest="cmd", required=True)
     ex = sub.add_parser("export", help="per-episode CSV from --parts slice folders")
     ex.add_argument("policy_dir", type=Path)
-    ex.add_argument("baseline_dir", type=Path)
+    ex.add_argument("baseline_dir", type=Path, nargs="?")
+    ex.add_argument(
+        "--baseline-csv",
+        type=Path,
+        help="baseline columns from an earlier export (same env, seed, batch)",
+    )
     ex.add_argument("--out", type=Path, required=True)
     an = sub.add_parser("analyse", help="reductions, bootstrap interval, per-episode share")
     an.add_argument("episodes_csv", type=Path)
@@ -129,7 +178,7 @@ def main() -> None:
     an.add_argument("--out", type=Path, required=True)
     args = ap.parse_args()
     if args.cmd == "export":
-        export(args.policy_dir, args.baseline_dir, args.out)
+        export(args.policy_dir, args.baseline_dir, args.out, args.baseline_csv)
     else:
         res = analyse(args.episodes_csv, args.chosen_on, args.slice, args.evaluated_on)
         args.out.write_text(json.dumps(res, indent=2) + "\n")

@@ -201,7 +201,17 @@ def seeds_verdicts(cs: dict, rl: dict) -> dict:
         arm: rec["over_seeds"]["train_fxy_first_minus_last_N"]
         for arm, rec in (("rl_cs", cs), ("rl", rl))
     }
+
+    def final(rec, key):
+        return [_float(s["final_eval"].get(key)) for s in rec["per_seed"]]
+
     return {
+        # not a thesis claim: the arms' final policies compared on their evaluation episodes
+        # (informative where the budget lets few training episodes end)
+        "final_eval_rl_minus_cs_ci95": {
+            key: welch_interval(final(rl, key), final(cs, key))
+            for key in ("success_rate", "mean_fz_N", "mean_time_s")
+        },
         "c4_1": {
             "claim": "RL + CS gives lower, steadier F_z over training than RL without it (Fig 4.5)",
             "rl_minus_cs_train_mean_fz_N_ci95": lower,

@@ -373,8 +373,9 @@ def test_rl_vs_rlcs_verdict_and_bad_input(tmp_path):
 def _fake_seeds_run(path, cs: bool, fz: dict[int, list[float]], fxy: dict[int, list[float]]):
     """A ``--seeds`` run directory (seeds.json, history.csv) as rl_vs_rlcs.py reads it."""
     path.mkdir()
-    evals = [
-        {"seed": s, "success_rate": 1.0, "mean_fz_N": 1.0, "mean_fxy_N": 1.0, "episodes": 8}
+    evals = [  # RL + CS extracts every episode; RL 0.5, 0.6, 0.7 (seeds 0, 1, 2)
+        {"seed": s, "success_rate": 1.0 if cs else 0.5 + 0.1 * s, "mean_fz_N": 1.0}
+        | {"mean_fxy_N": 1.0, "episodes": 8}
         for s in fz
     ]
     summary = {"env": "RectExtractHard", "compliance_strategy": cs, "profile": "cpu"}
@@ -407,6 +408,12 @@ def test_rl_vs_rlcs_over_seeds_gives_verdicts_from_intervals(tmp_path):
     over = res["rl_cs"]["over_seeds"]["train_mean_fz_N"]
     assert over["mean"] == pytest.approx(np.mean([np.mean(v) for v in cs_fz.values()]))
     assert list(out.glob("*.png"))
+    # the final policies' difference: RL minus RL + CS success, Welch over the seeds
+    fin = res["final_eval_rl_minus_cs_ci95"]
+    assert fin["success_rate"] == pytest.approx(
+        rl_vs_rlcs.welch_interval([0.5, 0.6, 0.7], [1.0, 1.0, 1.0])
+    )
+    assert fin["success_rate"][1] < 0 and fin["mean_time_s"] is None  # no times recorded
     # Welch's interval against scipy's own (equal_var=False) t statistic
     from scipy import stats
 
@@ -524,3 +531,37 @@ def test_jammed_dual_contact_forces_match_the_oracle(monkeypatch):
         for name, v in rel[rep].items():
             assert abs(v) < 0.10, (rep, name, v)
     assert out["harness"]["friction_timeconst_s"] is None and not out["harness"]["multiccd"]
+
+
+def _parts(folder, fz):
+    """A ``--parts`` slice folder holding one slice with these per-episode mean F_z."""
+    folder.mkdir(parents=True)
+    fz = np.asarray(fz, np.float32)
+    rec = {c: np.ones_like(fz) for c in paired_reduction.COLUMNS}
+    rec["mean_fz_N"] = fz
+    np.savez(folder / f"episodes_{0:07d}_{len(fz):07d}.npz", **rec)
+    return folder
+
+
+def test_export_pairs_a_policy_only_evaluation_with_an_earlier_baseline(tmp_path):
+    """``--baseline-csv`` takes the baseline columns of an earlier export (its first n rows);
+    a rerun baseline prefix must reproduce them, and a different one stops the export."""
+    base_fz = [40.123457, 35.5, 37.25, 30.0]
+    earlier = tmp_path / "earlier.csv"
+    paired_reduction.export(
+        _parts(tmp_path / "p0", [1, 2, 3, 4]), _parts(tmp_path / "b", base_fz), earlier
+    )
+    out = tmp_path / "new.csv"
+    policy = _parts(tmp_path / "p1", [9.0, 8.0, 7.0])  # 3 episodes: the file's first 3 rows
+    paired_reduction.export(policy, None, out, baseline_csv=earlier)
+    direct = tmp_path / "direct.csv"
+    paired_reduction.export(policy, _parts(tmp_path / "b3", base_fz[:3]), direct)
+    assert out.read_text() == direct.read_text()
+    # the first slice rerun agrees: accepted; a different baseline: refused, naming the episode
+    paired_reduction.export(policy, _parts(tmp_path / "r1", base_fz[:2]), out, earlier)
+    with pytest.raises(SystemExit, match="episode 1 mean_fz_N"):
+        paired_reduction.export(policy, _parts(tmp_path / "r2", [40.123457, 35.6]), out, earlier)
+    with pytest.raises(SystemExit, match="holds 4"):
+        paired_reduction.export(_parts(tmp_path / "p5", [1] * 5), None, out, earlier)
+    with pytest.raises(SystemExit, match="BASELINE_PARTS, --baseline-csv"):
+        paired_reduction.export(policy, None, out)
