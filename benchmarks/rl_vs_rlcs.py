@@ -23,7 +23,8 @@ over training: the 95 % Welch interval of RL minus RL + CS above zero for the pe
 and for the per-seed standard deviation of the training episodes' F_z) and C4.2 (the mean
 |F_xy| per episode falls during training: per seed, first chunk minus last chunk, its 95 %
 t-interval above zero); the plot has a band per arm
-(:func:`peghole_mjx.training.plots.plot_seed_bands`).
+(:func:`peghole_mjx.training.plots.plot_seed_bands`), and ``..._final.png`` shows each seed's
+final evaluation (:func:`peghole_mjx.training.plots.plot_final_evals`).
 """
 
 from __future__ import annotations
@@ -266,12 +267,17 @@ def main_seeds(args) -> int:
         raise SystemExit(str(e)) from None
     _check_arms(cs, rl)
     stem, result, label = _write(args, cs, rl, seeds_verdicts(cs, rl))
-    from peghole_mjx.training.plots import plot_seed_bands
+    from peghole_mjx.training.plots import plot_final_evals, plot_seed_bands
 
     plot_seed_bands(
         [args.cs, args.no_cs],
         stem.with_suffix(".png"),
         title=f"{cs['env']}: RL vs RL + CS, {len(cs['seeds'])} seeds, 95 % bands ({label})",
+    )
+    plot_final_evals(
+        [args.cs, args.no_cs],
+        stem.with_name(stem.name + "_final.png"),
+        title=f"{cs['env']}: final policies per seed, mean and 95 % t-interval ({label})",
     )
     print(
         json.dumps(

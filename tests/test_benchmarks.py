@@ -414,6 +414,7 @@ def test_rl_vs_rlcs_over_seeds_gives_verdicts_from_intervals(tmp_path):
         rl_vs_rlcs.welch_interval([0.5, 0.6, 0.7], [1.0, 1.0, 1.0])
     )
     assert fin["success_rate"][1] < 0 and fin["mean_time_s"] is None  # no times recorded
+    assert sorted(p.name.endswith("_final.png") for p in out.glob("*.png")) == [False, True]
     # Welch's interval against scipy's own (equal_var=False) t statistic
     from scipy import stats
 

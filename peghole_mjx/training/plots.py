@@ -144,3 +144,55 @@ def plot_seed_bands(runs: list[Path], out: Path, title: str | None = None) -> Pa
             band = np.isfinite(lo) & np.isfinite(hi)  # chunks with episodes of >= 2 seeds
             ax.fill_between(x[band], lo[band], hi[band], color=f"C{i}", alpha=0.25, lw=0)
     return _finish(fig, axes, title or "SAC training episodes: mean over seeds, 95 % band", out)
+
+
+FINAL_PANELS = (
+    ("success_rate", "success rate"),
+    ("mean_fz_N", "mean |F_z| per episode (N)"),
+    ("mean_time_s", "mean extraction time, successes (s)"),
+)
+
+
+def plot_final_evals(runs: list[Path], out: Path, title: str | None = None) -> Path:
+    """The final evaluation of each seed of multi-seed runs (``seeds.json``): one dot per seed
+    and the mean over seeds with its 95 % Student-t interval, per run; returns ``out``. It shows
+    what the training curves cannot where the budget lets few training episodes end."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    from peghole_mjx import fileio
+    from peghole_mjx.training.seeds import t_interval
+
+    fig, axes = plt.subplots(1, len(FINAL_PANELS), figsize=(11, 3.8))
+    labels = []
+    for i, run in enumerate(runs):
+        run = Path(run)
+        path = run / "seeds.json"
+        if not path.exists():
+            raise UserInputError(f"{run}: no seeds.json (not a finished multi-seed run)")
+        evals = json.loads(path.read_text())["final_eval"]
+        labels.append(f"{run_label(run)}\n({len(evals)} seeds)")
+        for ax, (key, _) in zip(axes, FINAL_PANELS, strict=True):
+            vals = [float(e[key]) for e in evals if e.get(key) is not None]
+            if not vals:  # not recorded by this run
+                continue
+            jitter = np.linspace(-0.12, 0.12, len(vals)) if len(vals) > 1 else np.zeros(1)
+            ax.scatter(i + jitter, vals, color=f"C{i}", s=18, alpha=0.7)
+            ci, mean = t_interval(vals), float(np.mean(vals))
+            err = None if ci is None else [[mean - ci[0]], [ci[1] - mean]]
+            ax.errorbar(i + 0.3, mean, yerr=err, fmt="D", color=f"C{i}", capsize=4, ms=5)
+    for ax, (_, ylabel) in zip(axes, FINAL_PANELS, strict=True):
+        ax.set_ylabel(ylabel)
+        ax.set_xticks(range(len(labels)), labels, fontsize=8)
+        ax.set_xlim(-0.5, len(labels) - 0.3)
+        ax.grid(alpha=0.3, axis="y")
+    fig.suptitle(title or "Final evaluation per seed: dots, mean and 95 % t-interval")
+    fig.tight_layout()
+    out = Path(out)
+    out.parent.mkdir(parents=True, exist_ok=True)
+    with fileio.atomic_open(out, "wb") as fh:
+        fig.savefig(fh, dpi=110, format=out.suffix.lstrip(".").lower() or "png")
+    plt.close(fig)
+    return out
