@@ -80,9 +80,6 @@ def plot_curves(runs: list[Path], out: Path, title: str | None = None) -> Path:
 def _finish(fig, axes, title: str, out: Path) -> Path:
     """Label the four panels, then write the figure atomically (a failed write keeps the
     old one)."""
-    import matplotlib.pyplot as plt
-
-    from peghole_mjx import fileio
 
     for ax, (_, ylabel, fig_ref) in zip(axes.flat, PANELS, strict=True):
         ax.set_ylabel(ylabel)
@@ -93,6 +90,15 @@ def _finish(fig, axes, title: str, out: Path) -> Path:
         ax.set_xlabel("env steps")
     axes[0, 0].legend(fontsize=7)
     fig.suptitle(title)
+    return _save(fig, out)
+
+
+def _save(fig, out: Path) -> Path:
+    """Write the figure atomically (a failed write keeps the old one) and close it."""
+    import matplotlib.pyplot as plt
+
+    from peghole_mjx import fileio
+
     fig.tight_layout()
     out = Path(out)
     out.parent.mkdir(parents=True, exist_ok=True)
@@ -162,7 +168,6 @@ def plot_final_evals(runs: list[Path], out: Path, title: str | None = None) -> P
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    from peghole_mjx import fileio
     from peghole_mjx.training.seeds import t_interval
 
     fig, axes = plt.subplots(1, len(FINAL_PANELS), figsize=(11, 3.8))
@@ -189,10 +194,4 @@ def plot_final_evals(runs: list[Path], out: Path, title: str | None = None) -> P
         ax.set_xlim(-0.5, len(labels) - 0.3)
         ax.grid(alpha=0.3, axis="y")
     fig.suptitle(title or "Final evaluation per seed: dots, mean and 95 % t-interval")
-    fig.tight_layout()
-    out = Path(out)
-    out.parent.mkdir(parents=True, exist_ok=True)
-    with fileio.atomic_open(out, "wb") as fh:
-        fig.savefig(fh, dpi=110, format=out.suffix.lstrip(".").lower() or "png")
-    plt.close(fig)
-    return out
+    return _save(fig, out)
