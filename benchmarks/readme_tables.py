@@ -1053,8 +1053,7 @@ def _rl_vs_rlcs_seeds(d: dict, path: Path) -> list[str]:
     ]
     fin = d.get("final_eval_rl_minus_cs_ci95")
     if fin:  # results written before 2026-11-30 lack it
-        lines[-1:] = [
-            "",
+        lines += [
             "Final policies, RL minus RL + CS (95 % Welch over seeds; not a thesis claim): "
             f"success {ci(fin['success_rate'])}, mean F_z {ci(fin['mean_fz_N'])} N, "
             f"mean time {ci(fin['mean_time_s'])} s.",

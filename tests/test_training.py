@@ -381,26 +381,27 @@ def test_every_registered_env_has_a_training_config_for_every_profile():
             assert cfg.env == env and cfg.profile == profile
 
 
-#: DualExtract's training settings that DualExtractHard's profiles leave out (obs.commands
-#: joined DualExtract's on 2026-11-30, after the dual_hard policy was trained)
-DUAL_HARD_DROPPED = ("obs.commands",)
 #: RectExtractHard's training settings beyond RectExtract's (docs/training.md, "Four recipes")
 RECT_HARD_ADDED = {
     "action.max_ff_xy_N": 2.0,
     "obs.commands": True,
     "reward_config.w_stf_rot": 0.5,
 }
+#: DualExtract's training settings that DualExtractHard's profiles leave out: obs.commands
+#: joined DualExtract's on 2026-11-30, after the dual_hard policy was trained
+DUAL_HARD_DROPPED = ("obs.commands",)
 
 
 def test_hard_variant_configs_are_the_base_configs_but_for_their_stated_changes():
     """train/configs/*Hard.json copy RectExtract's / DualExtract's hyperparameters; the only
-    differences are the ones their descriptions state (decided before training)."""
+    differences are the env overrides their descriptions state (decided before training):
+    ``added`` (key: value) and ``dropped`` (keys of the base profile left out)."""
     stated = {
-        ("RectExtractHard", "cpu"): {"env_overrides": RECT_HARD_ADDED},
-        ("RectExtractHard", "full"): {"env_overrides": RECT_HARD_ADDED},
-        # the env's own 8 s episodes; the observation dual_hard was trained with (eq 4.2's)
-        ("DualExtractHard", "cpu"): {"env_overrides": "episode_length"},
-        ("DualExtractHard", "full"): {"env_overrides": "dropped"},
+        ("RectExtractHard", "cpu"): {"added": RECT_HARD_ADDED},
+        ("RectExtractHard", "full"): {"added": RECT_HARD_ADDED},
+        # and the env's own 8 s episodes instead of DualExtract's 4 s
+        ("DualExtractHard", "cpu"): {"dropped": (*DUAL_HARD_DROPPED, "episode_length")},
+        ("DualExtractHard", "full"): {"dropped": DUAL_HARD_DROPPED},
     }
     for hard, base in (("RectExtractHard", "RectExtract"), ("DualExtractHard", "DualExtract")):
         for profile in PROFILES:
@@ -408,21 +409,13 @@ def test_hard_variant_configs_are_the_base_configs_but_for_their_stated_changes(
             b = load_train_config(base, profile).as_dict()
             diff = {k for k in h if h[k] != b[k]} - {"env"}
             want = stated.get((hard, profile), {})
-            assert diff == set(want), (hard, profile, diff)
-            if "num_timesteps" in want:
-                assert (b["num_timesteps"], h["num_timesteps"]) == want["num_timesteps"]
-            if want.get("env_overrides") in ("episode_length", "dropped"):  # left out by it
-                dropped = DUAL_HARD_DROPPED + (
-                    ("episode_length",) if want["env_overrides"] == "episode_length" else ()
-                )
-                for key in dropped:
-                    assert key in b["env_overrides"] and key not in h["env_overrides"]
-                    b["env_overrides"].pop(key)
-                assert h["env_overrides"] == b["env_overrides"]
-            elif "env_overrides" in want:  # added by the hard variant
-                for key, value in want["env_overrides"].items():
-                    assert key not in b["env_overrides"] and h["env_overrides"].pop(key) == value
-                assert h["env_overrides"] == b["env_overrides"]
+            assert diff == ({"env_overrides"} if want else set()), (hard, profile, diff)
+            for key in want.get("dropped", ()):
+                assert key in b["env_overrides"] and key not in h["env_overrides"]
+                b["env_overrides"].pop(key)
+            for key, value in want.get("added", {}).items():
+                assert key not in b["env_overrides"] and h["env_overrides"].pop(key) == value
+            assert h["env_overrides"] == b["env_overrides"]
 
 
 def test_train_cli_refuses_to_overwrite_a_run(tmp_path):
