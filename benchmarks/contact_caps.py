@@ -1,8 +1,10 @@
 """Contact caps sized from measurement: the most active contacts per scene.
 
-For each scene and collision representation (rect: box; dual: capsule and mesh) the env is
-built WITHOUT a contact cap (``contact_cap=0``) and rolled out under the scripted policy
-(straight pull) and a uniformly random policy, in
+For each scene and collision representation (rect: edges and box; dual: capsule and mesh), in
+the default env and in the hard variant that uses it (RectExtractHard: rect-3, 4 deg tilt
+error; DualExtractHard: dual-3, mu 0.266, where the scripted pull jams), the env is built
+WITHOUT a contact cap (``contact_cap=0``) and rolled out under the scripted policy (straight
+pull) and a uniformly random policy, in
 
 * MuJoCo C (``engines.CWorlds``: the env's control step with the NumPy impedance law),
   counting the active contacts (distance <= 0) after EVERY physics step, and
@@ -14,7 +16,7 @@ Finished episodes restart. The maximum over worlds, steps, engines and policies 
 margin (``tests/test_envs.py::test_rollouts_stay_below_the_contact_cap`` fails if a capped
 rollout reaches it).
 
-Run ``python -m benchmarks.contact_caps`` (about 10 minutes on 2 CPU cores; the mesh scene's
+Run ``python -m benchmarks.contact_caps`` (about 15 minutes on 2 CPU cores; the mesh scene's
 MJX rollouts are short because its step compiles for minutes and runs at ~100 steps/s);
 writes ``benchmarks/results/contact_caps.json``.
 """
@@ -33,8 +35,11 @@ from benchmarks.bench_common import RESULTS
 
 #: (scene, env, representation) measured
 SCENES = (
+    ("rect", "RectExtract", "edges"),
+    ("rect", "RectExtractHard", "edges"),
     ("rect", "RectExtract", "box"),
     ("dual", "DualExtract", "capsule"),
+    ("dual", "DualExtractHard", "capsule"),
     ("dual", "DualExtract", "mesh"),
 )
 
@@ -122,7 +127,12 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--c-steps", type=int, default=400, help="env steps per world, MuJoCo C")
     ap.add_argument("--mjx-steps", type=int, default=300, help="env steps per world, MJX")
     ap.add_argument("--mesh-mjx-steps", type=int, default=60, help="the same, mesh scene")
-    ap.add_argument("--scenes", default="rect:box,dual:capsule,dual:mesh")
+    ap.add_argument(
+        "--scenes",
+        default="RectExtract:edges,RectExtractHard:edges,RectExtract:box,DualExtract:capsule,"
+        "DualExtractHard:capsule,DualExtract:mesh",
+        help="comma-separated ENV:REPRESENTATION of the SCENES table",
+    )
     ap.add_argument("--out", type=Path, default=RESULTS / "contact_caps.json")
     ap.add_argument("--note", default="")
     args = ap.parse_args(argv)
@@ -133,9 +143,12 @@ def main(argv: list[str] | None = None) -> int:
     from peghole_mjx.provenance import provenance
 
     want = {tuple(s.split(":")) for s in args.scenes.split(",")}
+    unknown = want - {(name, rep) for _, name, rep in SCENES}
+    if unknown:
+        raise SystemExit(f"unknown --scenes entries {sorted(unknown)}: see SCENES")
     rows = []
     for scene, name, rep in SCENES:
-        if (scene, rep) not in want:
+        if (name, rep) not in want:
             continue
         env = envs.load(name, config_overrides={"representation": rep, "contact_cap": 0})
         for engine in ("mujoco-c", "mjx-jax"):
@@ -148,6 +161,7 @@ def main(argv: list[str] | None = None) -> int:
                     res = count_mjx(env, policy, args.worlds, n)
                 row = {
                     "scene": scene,
+                    "env": name,
                     "representation": rep,
                     "engine": engine,
                     "policy": policy,
@@ -158,13 +172,16 @@ def main(argv: list[str] | None = None) -> int:
                 print(json.dumps(row), flush=True)
                 rows.append(row)
     summary = {}
-    for scene, _, rep in SCENES:
+    for scene, rep in dict.fromkeys((scene, rep) for scene, _, rep in SCENES):
         got = [r["max_active"] for r in rows if (r["scene"], r["representation"]) == (scene, rep)]
         if not got:
             continue
         cap = CONTACT_CAPS.get((scene, rep))
         summary[f"{scene}/{rep}"] = {
             "measured_max": max(got),
+            "envs": sorted(
+                {r["env"] for r in rows if (r["scene"], r["representation"]) == (scene, rep)}
+            ),
             "cap": cap.cap if cap else 0,
             "recorded_measured_max": cap.measured_max if cap else None,
         }

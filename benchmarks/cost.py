@@ -1,6 +1,7 @@
 """Cost measures that need no GPU, per scene and collision representation.
 
-For RectExtract (box) and DualExtract in each MJX-JAX representation (capsule, mesh):
+For RectExtract (edges, the default, and box) and DualExtract in each MJX-JAX representation
+(capsule, mesh):
 
 * ``mjx.Data`` bytes per world and the state-traffic roofline (``roofline.roofline_estimate``);
 * XLA's cost analysis (bytes accessed and FLOPs) per world, as ``(C(n worlds) - C(1)) / (n-1)``
@@ -49,6 +50,7 @@ from benchmarks.throughput import run_job
 
 #: (scene, env name, representation) measured
 VARIANTS = (
+    ("rect", "RectExtract", "edges"),
     ("rect", "RectExtract", "box"),
     ("dual", "DualExtract", "capsule"),
     ("dual", "DualExtract", "mesh"),
@@ -77,9 +79,16 @@ def _batched(shape, w: int):
     return jax.tree.map(lambda x: jax.ShapeDtypeStruct((w, *x.shape), x.dtype), shape)
 
 
-def measure(name: str, rep: str, compile_worlds: int = 8, contact_cap: int | None = None) -> dict:
+def measure(
+    name: str,
+    rep: str,
+    compile_worlds: int = 8,
+    contact_cap: int | None = None,
+    geometry: str = "",
+) -> dict:
     """The cost entry of one env in one representation (see the module docstring);
-    ``contact_cap``: another ``max_contact_points`` than the scene's measured default."""
+    ``contact_cap``: another ``max_contact_points`` than the scene's measured default;
+    ``geometry``: the env config's geometry changes (JSON, e.g. ``{"n_sides": 12}``)."""
     import jax
 
     from peghole_mjx import envs
@@ -87,6 +96,8 @@ def measure(name: str, rep: str, compile_worlds: int = 8, contact_cap: int | Non
     from peghole_mjx.geometry import mjcf
 
     over = {"representation": rep}
+    if geometry:
+        over["geometry"] = geometry
     saved = dict(mjcf.CONTACT_CAPS)
     if contact_cap is not None:
         over["contact_cap"] = contact_cap
@@ -108,6 +119,7 @@ def measure(name: str, rep: str, compile_worlds: int = 8, contact_cap: int | Non
         "env": name,
         "representation": rep,
         "contact_cap": contact_cap if contact_cap is not None else "default",
+        "geometry": geometry,
         "n_geoms": int(env.mj_model.ngeom),
         "n_pairs": int(env.mj_model.npair),
         "contacts_allocated": int(shape.data._impl.contact.dist.shape[0]),
@@ -188,8 +200,13 @@ def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument(
         "--variants",
-        default="rect:box,dual:capsule,dual:mesh",
+        default="rect:edges,rect:box,dual:capsule,dual:mesh",
         help="comma list of scene:representation[:contact cap]",
+    )
+    ap.add_argument(
+        "--geometry",
+        default="",
+        help="geometry changes for every variant (env config JSON, e.g. '{\"n_sides\": 12}')",
     )
     ap.add_argument("--append", action="store_true", help="add the entries to --out's")
     ap.add_argument("--speed", action="store_true", help="also the side-by-side CPU speed rows")
@@ -215,7 +232,8 @@ def main(argv: list[str] | None = None) -> int:
         if (scene, rep) not in names:
             ap.error(f"unknown variant {scene}:{rep}")
         name = names[(scene, rep)]
-        e = {"scene": scene, **measure(name, rep, contact_cap=int(cap[0]) if cap else None)}
+        cap_n = int(cap[0]) if cap else None
+        e = {"scene": scene, **measure(name, rep, contact_cap=cap_n, geometry=args.geometry)}
         x = e["xla"]
         print(
             f"[cost] {scene}/{rep} cap {e['contact_cap']}: env step "

@@ -1084,6 +1084,8 @@ def cost() -> str:
         rep = e["representation"]
         if e.get("contact_cap", "default") != "default":
             rep += f" (cap {e['contact_cap']})"
+        if e.get("geometry"):
+            rep += f" (geometry {e['geometry']})"
 
         def mb(k, x=x):
             return f"{x[k]['bytes_per_world'] / 1e6:.2f}"
@@ -1096,6 +1098,24 @@ def cost() -> str:
             f"{mb('solver_iteration')} | {x['env_step']['flops_per_world'] / 1e6:.1f} | "
             f"{e['env_step_compile_s']} | {est[0]} | {est[1]} | unmeasured (no GPU run yet) |"
         )
+    added = data.get("extra_entries", [])
+    if added:
+        lines += [
+            "",
+            "Rows added to the file later (`--append`): "
+            + "; ".join(
+                f"{e['scene']} {e['representation']}"
+                + (
+                    f" cap {e['contact_cap']}"
+                    if e.get("contact_cap", "default") != "default"
+                    else ""
+                )
+                + (f" geometry {e['geometry']}" if e.get("geometry") else "")
+                + f" measured {e.get('measured', '?')}"
+                for e in added
+            )
+            + ".",
+        ]
     speed = data.get("speed") or []
     if speed:
         lines += [
@@ -1120,6 +1140,44 @@ def cost() -> str:
                 + "; ".join(f"{w} worlds {v:.1f}x" for w, v in ratios.items())
                 + ".",
             ]
+    return "\n".join(lines)
+
+
+def cost_brief() -> str:
+    """README summary of the per-world cost: each env's representation, its XLA traffic and
+    the roofline estimates beside the (unmeasured) GPU rows (benchmarks/cost.py)."""
+    from peghole_mjx.geometry.parts import (
+        DUAL_DEFAULT_REPRESENTATION,
+        RECT_DEFAULT_REPRESENTATION,
+    )
+
+    path = RESULTS / "cost_cpu-2core.json"
+    data = json.loads(path.read_text())
+    used = {
+        ("rect", RECT_DEFAULT_REPRESENTATION): "RectExtract, RectExtractHard",
+        ("dual", DUAL_DEFAULT_REPRESENTATION): "DualExtract, DualExtractHard",
+    }
+    other = "option (env config `representation`)"
+    gpus = list(data["gpus"])
+    lines = [
+        f"Per-world cost from [`benchmarks/results/{path.name}`](benchmarks/results/{path.name}) "
+        f"({data['device']}; XLA's byte count of one env step, un-optimised HLO; the roofline "
+        "estimate is bandwidth / bytes, an estimate, not a measurement):",
+        "",
+        f"| scene | representation | used by | XLA MB per world-step | {gpus[0]} estimate, "
+        f"physics steps/s | {gpus[1]} estimate | GPU measured |",
+        "|---|---|---|---|---|---|---|",
+    ]
+    for e in data["entries"] + data.get("extra_entries", []):
+        if e.get("contact_cap", "default") != "default" or e.get("geometry"):
+            continue  # the trade-off rows: docs/benchmarks.md
+        key = (e["scene"], e["representation"])
+        est = [f"{e['roofline'][g]['xla_traffic_estimate_physics_steps_per_s']:.3g}" for g in gpus]
+        lines.append(
+            f"| {e['scene']} | {e['representation']} | {used.get(key, other)} | "
+            f"{e['xla']['env_step']['bytes_per_world'] / 1e6:.2f} | {est[0]} | {est[1]} | "
+            "unmeasured (no GPU run yet) |"
+        )
     return "\n".join(lines)
 
 
@@ -1180,6 +1238,7 @@ TABLES = {
     "throughput": throughput,
     "roofline": roofline,
     "cost": cost,
+    "cost_brief": cost_brief,
     "time_to_success": time_to_success,
     "time_to_success_hard": time_to_success_hard,
     "time_to_success_ratio": time_to_success_hard,
@@ -1211,6 +1270,7 @@ TABLE_FILES = {
     "throughput": "docs/benchmarks.md",
     "roofline": "docs/benchmarks.md",
     "cost": "docs/benchmarks.md",
+    "cost_brief": "README.md",
     "time_to_success": "docs/benchmarks.md",
     "time_to_success_hard": "docs/benchmarks.md",
     "time_to_success_ratio": "README.md",

@@ -390,18 +390,25 @@ RECT_HARD_ADDED = {
 #: DualExtract's training settings that DualExtractHard's profiles leave out: obs.commands
 #: joined DualExtract's on 2026-11-30, after the dual_hard policy was trained
 DUAL_HARD_DROPPED = ("obs.commands",)
+#: DualExtract's settings that DualExtractHard's profiles keep at an earlier value: the lateral
+#: feed-forward bound went from 2 N to 0.5 N in DualExtract's on 2026-11-30, after dual_hard
+DUAL_HARD_KEPT = {"action.max_ff_xy_N": 2.0}
 
 
 def test_hard_variant_configs_are_the_base_configs_but_for_their_stated_changes():
     """train/configs/*Hard.json copy RectExtract's / DualExtract's hyperparameters; the only
     differences are the env overrides their descriptions state (decided before training):
-    ``added`` (key: value) and ``dropped`` (keys of the base profile left out)."""
+    ``added`` (key: value), ``dropped`` (keys of the base profile left out) and ``kept``
+    (key: the value the base profile had when the hard policy was trained)."""
     stated = {
         ("RectExtractHard", "cpu"): {"added": RECT_HARD_ADDED},
         ("RectExtractHard", "full"): {"added": RECT_HARD_ADDED},
         # and the env's own 8 s episodes instead of DualExtract's 4 s
-        ("DualExtractHard", "cpu"): {"dropped": (*DUAL_HARD_DROPPED, "episode_length")},
-        ("DualExtractHard", "full"): {"dropped": DUAL_HARD_DROPPED},
+        ("DualExtractHard", "cpu"): {
+            "dropped": (*DUAL_HARD_DROPPED, "episode_length"),
+            "kept": DUAL_HARD_KEPT,
+        },
+        ("DualExtractHard", "full"): {"dropped": DUAL_HARD_DROPPED, "kept": DUAL_HARD_KEPT},
     }
     for hard, base in (("RectExtractHard", "RectExtract"), ("DualExtractHard", "DualExtract")):
         for profile in PROFILES:
@@ -415,6 +422,8 @@ def test_hard_variant_configs_are_the_base_configs_but_for_their_stated_changes(
                 b["env_overrides"].pop(key)
             for key, value in want.get("added", {}).items():
                 assert key not in b["env_overrides"] and h["env_overrides"].pop(key) == value
+            for key, value in want.get("kept", {}).items():
+                assert b["env_overrides"].pop(key) != value == h["env_overrides"].pop(key)
             assert h["env_overrides"] == b["env_overrides"]
 
 

@@ -46,8 +46,9 @@ def base_config(preset: str) -> config_dict.ConfigDict:
         # relaxed over 1 s (0: as stiff as the normal row)
         contact=config_dict.create(timeconst_s=0.01, friction_timeconst_s=1.0),
         # warp: contact buffer per world (x num worlds) and constraint rows per world; the most
-        # active contacts measured (benchmarks/results/contact_caps.json) are rect 20, dual
-        # capsule 22, dual mesh 47; 3 rows per elliptic condim-3 contact + joint limits
+        # active contacts measured (benchmarks/results/contact_caps.json, 2026-11-30) are rect
+        # 20 (edges and box), dual capsule 26, dual mesh 37; 3 rows per elliptic condim-3
+        # contact + joint limits
         naconmax=64,
         njmax=256,
         action=config_dict.create(

@@ -244,20 +244,20 @@ class ContactCap:
 
 
 #: (scene kind, representation) -> measured maximum and cap (see ContactCap), measured
-#: 2026-11-29 on the 2-core CPU (8 worlds, 400 env steps in MuJoCo C, 300 in MJX-JAX, scripted
-#: and random actions; benchmarks/results/contact_caps.json). cap 0 = none: the rect scene's
-#: 5 box-box pairs allocate 20 contacts (4 each) and a random rollout makes all 20 active;
-#: the mesh scene is the exact-geometry reference and stays uncapped (47 active seen). Dual
-#: capsule: at most 22 of 68 allocated (MuJoCo C, random actions; MJX 15), so 32 allocated
-#: (a 10-contact margin).
+#: 2026-11-30 on the 2-core CPU (8 worlds, 400 env steps in MuJoCo C, 300 in MJX-JAX, scripted
+#: and random actions, in each default env and its hard variant; benchmarks.contact_caps,
+#: benchmarks/results/contact_caps.json). cap 0 = none. Rect: the box scene's 5 box-box pairs
+#: allocate 20 contacts (4 each) and a random rollout makes all 20 active; the edges scene (the
+#: default) allocates 52 (2 per capsule-box pair) and at most 20 are active (RectExtract and
+#: RectExtractHard alike), uncapped. Dual: the mesh scene is the exact-geometry reference and
+#: stays uncapped (37 of 136 active); the capsule scene allocates 32 of its 68: the most seen
+#: is 26 (DualExtractHard, dual-3 at mu 0.266, random actions, MuJoCo C; its scripted pull
+#: jams with 19), DualExtract's 20.
 CONTACT_CAPS: dict[tuple[str, str], ContactCap] = {
     ("rect", "box"): ContactCap(measured_max=20, cap=0),
-    # the edge model allocates 2 contacts per capsule-box pair (28 pairs; not yet measured)
-    ("rect", "edges"): ContactCap(measured_max=0, cap=0),
-    # benchmarks/results/contact_caps.json, 2026-11-29 (the current contact settings; MuJoCo
-    # C's multi-point CCD off): capsule 20 of 68 allocated, mesh 38 of 136 (MJX-JAX, random)
-    ("dual", "capsule"): ContactCap(measured_max=20, cap=32),
-    ("dual", "mesh"): ContactCap(measured_max=38, cap=0),
+    ("rect", "edges"): ContactCap(measured_max=20, cap=0),
+    ("dual", "capsule"): ContactCap(measured_max=26, cap=32),
+    ("dual", "mesh"): ContactCap(measured_max=37, cap=0),
 }
 
 

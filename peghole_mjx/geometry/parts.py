@@ -61,7 +61,8 @@ REPRESENTATIONS = ("capsule", "mesh", "cylinder")
 #: misses shallow tilted contacts) or "box" (peg box against wall boxes)
 RECT_REPRESENTATIONS = ("edges", "box")
 RECT_DEFAULT_REPRESENTATION = "edges"
-#: the dual default (the GPU-scale one: 2.9 MB of XLA traffic per world-step vs 66.7 MB)
+#: the dual default (the GPU-scale one: 4.05 MB of XLA traffic per world-step at its contact cap
+#: vs the mesh scene's 67.2 MB; benchmarks/results/cost_cpu-2core.json)
 DUAL_DEFAULT_REPRESENTATION = "capsule"
 #: representations each simulator implementation can collide
 IMPL_REPRESENTATIONS = {
