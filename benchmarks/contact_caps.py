@@ -173,15 +173,13 @@ def main(argv: list[str] | None = None) -> int:
                 rows.append(row)
     summary = {}
     for scene, rep in dict.fromkeys((scene, rep) for scene, _, rep in SCENES):
-        got = [r["max_active"] for r in rows if (r["scene"], r["representation"]) == (scene, rep)]
+        got = [r for r in rows if (r["scene"], r["representation"]) == (scene, rep)]
         if not got:
             continue
         cap = CONTACT_CAPS.get((scene, rep))
         summary[f"{scene}/{rep}"] = {
-            "measured_max": max(got),
-            "envs": sorted(
-                {r["env"] for r in rows if (r["scene"], r["representation"]) == (scene, rep)}
-            ),
+            "measured_max": max(r["max_active"] for r in got),
+            "envs": sorted({r["env"] for r in got}),
             "cap": cap.cap if cap else 0,
             "recorded_measured_max": cap.measured_max if cap else None,
         }

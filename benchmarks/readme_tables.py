@@ -1062,6 +1062,16 @@ def _rl_vs_rlcs_seeds(d: dict, path: Path) -> list[str]:
     return lines
 
 
+def _cost_variant(e: dict) -> str:
+    """How a cost entry departs from its scene's defaults: "" or e.g. " (cap 28)"."""
+    out = ""
+    if e.get("contact_cap", "default") != "default":
+        out += f" (cap {e['contact_cap']})"
+    if e.get("geometry"):
+        out += f" (geometry {e['geometry']})"
+    return out
+
+
 def cost() -> str:
     """Per-world cost by collision representation (benchmarks/cost.py)."""
     path = RESULTS / "cost_cpu-2core.json"
@@ -1081,11 +1091,7 @@ def cost() -> str:
     gpus = list(data["gpus"])
     for e in data["entries"] + data.get("extra_entries", []):
         x = e["xla"]
-        rep = e["representation"]
-        if e.get("contact_cap", "default") != "default":
-            rep += f" (cap {e['contact_cap']})"
-        if e.get("geometry"):
-            rep += f" (geometry {e['geometry']})"
+        rep = e["representation"] + _cost_variant(e)
 
         def mb(k, x=x):
             return f"{x[k]['bytes_per_world'] / 1e6:.2f}"
@@ -1104,14 +1110,8 @@ def cost() -> str:
             "",
             "Rows added to the file later (`--append`): "
             + "; ".join(
-                f"{e['scene']} {e['representation']}"
-                + (
-                    f" cap {e['contact_cap']}"
-                    if e.get("contact_cap", "default") != "default"
-                    else ""
-                )
-                + (f" geometry {e['geometry']}" if e.get("geometry") else "")
-                + f" measured {e.get('measured', '?')}"
+                f"{e['scene']} {e['representation']}{_cost_variant(e)} measured "
+                f"{e.get('measured', '?')}"
                 for e in added
             )
             + ".",
@@ -1169,7 +1169,7 @@ def cost_brief() -> str:
         "|---|---|---|---|---|---|---|",
     ]
     for e in data["entries"] + data.get("extra_entries", []):
-        if e.get("contact_cap", "default") != "default" or e.get("geometry"):
+        if _cost_variant(e):
             continue  # the trade-off rows: docs/benchmarks.md
         key = (e["scene"], e["representation"])
         est = [f"{e['roofline'][g]['xla_traffic_estimate_physics_steps_per_s']:.3g}" for g in gpus]
