@@ -33,7 +33,17 @@ COLUMNS = (
     "versions",
     "date",
 )
-ENGINES = ("mjx-jax", "mjx-warp", "mujoco-c", "mujoco-c-rollout", "pybullet")
+ENGINES = (
+    "mjx-jax",
+    "mjx-warp",
+    # the env on its mujoco engine (MuJoCo C, mujoco.batch): all threads, one thread
+    "mujoco",
+    "mujoco-1t",
+    "batch-ceiling",  # mujoco.batch.Batch.step with no law: the mujoco engine's ceiling
+    "mujoco-c",
+    "mujoco-c-rollout",
+    "pybullet",
+)
 SCENES = {
     "rect": "RectExtract",
     "dual": "DualExtract",  # the env's default collision representation: capsule

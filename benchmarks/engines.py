@@ -46,6 +46,7 @@ def run_mjx(
     chunk: int,
     min_time: float,
     representation: str | None = None,
+    engine_overrides: dict | None = None,
 ) -> dict:
     import jax
     import jax.numpy as jnp
@@ -55,7 +56,7 @@ def run_mjx(
     from peghole_mjx.envs.rollout import scripted_policy
 
     gpu = gpu_kind()
-    overrides = {"impl": impl, **SCENE_OVERRIDES.get(scene, {})}
+    overrides = {"impl": impl, **SCENE_OVERRIDES.get(scene, {}), **(engine_overrides or {})}
     if representation:  # the env's default otherwise (dual: capsule)
         overrides["representation"] = representation
     env = envs.load(SCENES[scene], config_overrides=overrides)
@@ -114,6 +115,51 @@ def run_mjx(
             "nan_world_share": nan,
             "distinct_start_states": n_reset,
         },
+    }
+
+
+def run_env_mujoco(scene: str, worlds: int, chunk: int, min_time: float, threads: int) -> dict:
+    """The env on the ``mujoco`` engine (MuJoCo C via mujoco.batch, ``threads`` threads, 0 =
+    all): the same jitted, scanned ``vmap(env.step)`` as :func:`run_mjx`."""
+    over = {"engine": "mujoco", "mujoco_threads": threads}
+    row = run_mjx(scene, worlds, "jax", chunk, min_time, engine_overrides=over)
+    from peghole_mjx.envs.engine_mujoco import available_threads
+
+    row["device"] = cpu_device()
+    row["extra"]["threads"] = threads or available_threads()
+    return row
+
+
+def run_batch_ceiling(scene: str, worlds: int, min_time: float) -> dict:
+    """``mujoco.batch.Batch.step`` of the env's scene with no law (the controls held at the
+    start's gravity compensation) on all threads: the ceiling of the ``mujoco`` engine."""
+    import mujoco
+    from mujoco.batch import Batch
+
+    from peghole_mjx.envs.engine_mujoco import available_threads
+
+    env = load_env_quiet(scene)
+    m = copy.copy(env.mj_model)
+    m.opt.disableflags |= mujoco.mjtDisableBit.mjDSBL_AUTORESET
+    b = Batch(m, worlds, nthread=0)
+    b.reset(keyframe=m.key("inserted").id)
+    ctrl = b.bind("ctrl")
+    ctrl[:] = b.bind("qfrc_bias")[:, env.engine.ctrl.dadr]
+    b.step(nstep=env.n_substeps)  # warm-up
+    steps, t0 = 0, time.perf_counter()
+    while True:
+        b.step(nstep=env.n_substeps)
+        steps += worlds
+        elapsed = time.perf_counter() - t0
+        if elapsed >= min_time:
+            break
+    return {
+        "device": cpu_device(),
+        "physics_steps_per_s": steps * env.n_substeps / elapsed,
+        "env_steps_per_s": steps / elapsed,
+        "compile_s": None,
+        "peak_mem_mb": max_rss_mb(),
+        "extra": {"threads": available_threads(), "timed_s": round(elapsed, 2), "law": "none"},
     }
 
 

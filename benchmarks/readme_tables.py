@@ -84,7 +84,11 @@ def _num(x, fmt: str = ".1f") -> str:
 
 def throughput_csvs(results: Path = RESULTS) -> list[Path]:
     """The committed full-sweep throughput CSVs, one per device (``--quick`` ones left out)."""
-    return sorted(p for p in results.glob("throughput_*.csv") if not p.stem.endswith("_quick"))
+    return sorted(
+        p
+        for p in results.glob("throughput_*.csv")
+        if not p.stem.endswith("_quick") and not p.stem.startswith("throughput_engines")
+    )
 
 
 def throughput(results: Path = RESULTS) -> str:
@@ -1223,7 +1227,109 @@ def generalisation() -> str:
     return "\n".join(lines).rstrip()
 
 
+def _engine_rows(path: Path) -> dict[tuple[str, str, int], dict]:
+    return {(r["engine"], r["scene"], int(r["worlds"])): r for r in read_csv(path)}
+
+
+ENGINE_LABELS = {
+    "mjx-jax": "MJX-JAX (engine mjx)",
+    "mujoco-1t": "engine mujoco, 1 thread",
+    "mujoco": "engine mujoco, all threads",
+    "batch-ceiling": "Batch.step, no law (ceiling)",
+    "pybullet": "PyBullet, one process",
+}
+
+
+def engines_throughput() -> str:
+    """The env's two engines side by side (``--sweep engines``): env steps/s per row."""
+    path = RESULTS / "throughput_engines_cpu-2core.csv"
+    if not path.exists():
+        return "Not measured yet: `python -m benchmarks.throughput --sweep engines`."
+    rows = _engine_rows(path)
+    meta = json.loads(path.with_suffix(".json").read_text())
+    worlds = sorted({w for (_, _, w) in rows})
+    out = [
+        f"Env steps/s (one env step = 10 physics steps), {meta['device']}, {meta['date'][:10]}, "
+        f"one run (`python -m benchmarks.throughput --sweep engines`; "
+        f"[{path.name}](benchmarks/results/{path.name})):",
+        "",
+        "| scene | engine | " + " | ".join(f"{w} worlds" for w in worlds) + " |",
+        "|---|---|" + "---:|" * len(worlds),
+    ]
+    for scene in ("rect", "dual"):
+        for eng, label in ENGINE_LABELS.items():
+            cells = [rows.get((eng, scene, w)) for w in worlds]
+            if not any(cells):
+                continue
+            vals = [_num(float(c["env_steps_per_s"]), ".0f") if c else "-" for c in cells]
+            out.append(f"| {scene} | {label} | " + " | ".join(vals) + " |")
+    return "\n".join(out)
+
+
+def engines_ratio() -> str:
+    """The README's engine ratios at 64 worlds, from the same run."""
+    path = RESULTS / "throughput_engines_cpu-2core.csv"
+    if not path.exists():
+        return "Not measured yet: `python -m benchmarks.throughput --sweep engines`."
+    rows = _engine_rows(path)
+
+    def r(eng, scene, w=64):
+        row = rows.get((eng, scene, w))
+        return float(row["env_steps_per_s"]) if row else float("nan")
+
+    out = [
+        "| at 64 worlds, 2-core CPU, one run | rect | dual (capsule) |",
+        "|---|---:|---:|",
+        "| engine mujoco / MJX-JAX | "
+        + " | ".join(f"{r('mujoco', s) / r('mjx-jax', s):.1f}x" for s in ("rect", "dual"))
+        + " |",
+        "| engine mujoco / Batch.step ceiling | "
+        + " | ".join(f"{r('mujoco', s) / r('batch-ceiling', s):.2f}" for s in ("rect", "dual"))
+        + " |",
+        "| engine mujoco / one PyBullet process | "
+        f"{r('mujoco', 'rect') / r('pybullet', 'rect', 1):.1f}x | - |",
+    ]
+    return "\n".join(out)
+
+
+def cross_engine() -> str:
+    """The scripted baseline on both engines (benchmarks/cross_engine.py)."""
+    path = RESULTS / "cross_engine_cpu-2core.json"
+    if not path.exists():
+        return "Not measured yet: `python -m benchmarks.cross_engine`."
+    d = json.loads(path.read_text())
+    out = [
+        f"Scripted baseline, {d['episodes']} episodes of seed {d['seed']} on each engine, "
+        f"{d['device']}, {d['date'][:10]} ([{path.name}](benchmarks/results/{path.name})):",
+        "",
+        "| env | engine | success [95 %] | mean F_z N | peak F_z N | time s | mujoco - mjx "
+        "mean F_z N [95 %] | source |",
+        "|---|---|---|---:|---:|---:|---|---|",
+    ]
+    for name, e in d["envs"].items():
+        comp = e["comparison"]
+        diff = comp.get("mean_fz_N_mujoco_minus_mjx")
+        dtext = (
+            f"{diff['mean']:+.3f} [{diff['ci95'][0]:+.3f}, {diff['ci95'][1]:+.3f}]"
+            if diff
+            else f"{comp['mean_fz_relative_pct']:+.1f} % (unpaired)"
+        )
+        for eng in ("mjx", "mujoco"):
+            s = e[eng]
+            lo, hi = s["success_ci95"]
+            t = "-" if s.get("mean_time_s") is None else f"{s['mean_time_s']:.2f}"
+            out.append(
+                f"| {name} | {eng} | {s['success_rate']:.3f} [{lo:.3f}, {hi:.3f}] | "
+                f"{s['mean_fz_N']:.3f} | {s['peak_fz_N']:.2f} | {t} | "
+                f"{dtext if eng == 'mujoco' else ''} | {s.get('source', 'this run')} |"
+            )
+    return "\n".join(out)
+
+
 TABLES = {
+    "engines_throughput": engines_throughput,
+    "engines_ratio": engines_ratio,
+    "cross_engine": cross_engine,
     "models_check": models_check,
     "env_rollouts": env_rollouts,
     "contact_check": contact_check,
@@ -1252,6 +1358,9 @@ TABLES = {
 
 #: the Markdown file (relative to the repository root) that holds each table
 TABLE_FILES = {
+    "engines_throughput": "docs/engines.md",
+    "engines_ratio": "README.md",
+    "cross_engine": "docs/engines.md",
     "models_check": "docs/models.md",
     "contact_check": "docs/compliance.md",
     "compliance_sweep": "docs/compliance.md",

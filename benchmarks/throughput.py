@@ -14,6 +14,14 @@ dual-2) scenes, with the iiwa and the impedance law, for these engines:
 ``mjx-warp``
     the same with ``impl="warp"`` (MuJoCo Warp); CUDA GPU only, skipped with a message
     otherwise.
+``mujoco`` / ``mujoco-1t``
+    the env on its ``mujoco`` engine (``peghole_mjx/envs/engine_mujoco.py``: MuJoCo C through
+    ``mujoco.batch`` on all threads / one thread, the NumPy impedance law over all worlds at
+    every physics step), through the same jitted, scanned ``vmap(env.step)`` as ``mjx-jax``.
+``batch-ceiling``
+    ``mujoco.batch.Batch.step`` of the same scene and worlds with no law (controls held at the
+    start's gravity compensation), all threads: what the ``mujoco`` engine could reach if its
+    host law cost nothing.
 ``mujoco-c``
     MuJoCo C (``mj_step``) in ONE thread, worlds stepped one after the other, with the
     impedance law in NumPy run in closed loop at every physics step
@@ -83,6 +91,8 @@ from benchmarks.bench_common import (
 from benchmarks.engines import (
     gpu_kind,
     jax_device_str,
+    run_batch_ceiling,
+    run_env_mujoco,
     run_mjx,
     run_mujoco_c,
     run_pybullet,
@@ -106,6 +116,15 @@ SWEEP_GPU = {
     "mujoco-c-rollout": {s: [1, 16, 256, 1024, 4096] for s in SCENES},
     "pybullet": {"rect": [1, 16, 64]},
 }
+#: ``--sweep engines``: the two engines of the env side by side (issue of 2026-12-02), every
+#: row in one run; PyBullet as ONE process (worlds 1)
+SWEEP_ENGINES = {
+    "mjx-jax": {"rect": [1, 8, 64, 256], "dual": [1, 8, 64, 256]},
+    "mujoco-1t": {"rect": [1, 8, 64, 256], "dual": [1, 8, 64, 256]},
+    "mujoco": {"rect": [1, 8, 64, 256], "dual": [1, 8, 64, 256]},
+    "batch-ceiling": {"rect": [1, 8, 64, 256], "dual": [1, 8, 64, 256]},
+    "pybullet": {"rect": [1]},
+}
 SWEEP_QUICK = {
     "mjx-jax": {"rect": [1, 8]},
     "mujoco-c": {"rect": [1], "dual": [1]},
@@ -126,6 +145,11 @@ def run_worker(spec: dict) -> dict:
             spec["min_time"],
             spec.get("representation"),
         )
+    if engine in ("mujoco", "mujoco-1t"):
+        threads = 1 if engine == "mujoco-1t" else 0
+        return run_env_mujoco(scene, worlds, spec["chunk"], spec["min_time"], threads)
+    if engine == "batch-ceiling":
+        return run_batch_ceiling(scene, worlds, spec["min_time"])
     if engine == "mujoco-c":
         return run_mujoco_c(scene, worlds, spec["min_time"])
     if engine == "mujoco-c-rollout":
@@ -158,6 +182,8 @@ def skip_reason(engine: str, scene: str, gpu: str | None) -> str | None:
 def plan(args, gpu: str | None) -> list[dict]:
     if args.quick:
         sweep = SWEEP_QUICK
+    elif args.sweep == "engines":
+        sweep = SWEEP_ENGINES
     else:
         sweep = SWEEP_GPU if gpu else SWEEP_CPU
     jobs = []
@@ -220,7 +246,14 @@ def main(argv: list[str] | None = None) -> int:
         description=__doc__.split("\n\n")[0], formatter_class=argparse.RawTextHelpFormatter
     )
     ap.add_argument("--quick", action="store_true", help="small sweep, < 5 min on 2 CPU cores")
-    ap.add_argument("--engines", default=",".join(ENGINES), help="comma list of " + str(ENGINES))
+    ap.add_argument("--engines", default=None, help="comma list of " + str(ENGINES))
+    ap.add_argument(
+        "--sweep",
+        choices=("default", "engines"),
+        default="default",
+        help="engines: MJX-JAX, the mujoco engine (1 and all threads), the no-law Batch.step "
+        "ceiling and one PyBullet process, rect and dual at 1/8/64/256 worlds, one run",
+    )
     ap.add_argument("--scenes", default="rect,dual", help="comma list: rect, dual")
     ap.add_argument("--worlds", default=None, help="comma list overriding the default sweep")
     ap.add_argument("--out", type=Path, default=None, help="CSV path (default per device)")
@@ -240,6 +273,8 @@ def main(argv: list[str] | None = None) -> int:
         print("ROW " + json.dumps(row, default=float), flush=True)
         return 0
 
+    if args.engines is None:
+        args.engines = ",".join(SWEEP_ENGINES if args.sweep == "engines" else ENGINES)
     args.engines = [e.strip() for e in args.engines.split(",") if e.strip()]
     args.scenes = [s.strip() for s in args.scenes.split(",") if s.strip()]
     bad = [e for e in args.engines if e not in ENGINES] + [
@@ -258,8 +293,9 @@ def main(argv: list[str] | None = None) -> int:
         _DRIVER_ONLY_ENV.add("XLA_PYTHON_CLIENT_PREALLOCATE")
     gpu = gpu_kind()
     label = device_label(gpu)
+    stem = "throughput_engines" if args.sweep == "engines" else "throughput"
     out = args.out or RESULTS / (
-        f"throughput_{label}_quick.csv" if args.quick else f"throughput_{label}.csv"
+        f"{stem}_{label}_quick.csv" if args.quick else f"{stem}_{label}.csv"
     )
     side = out.with_suffix(".json")
 

@@ -260,6 +260,19 @@ def test_impl_and_warp_buffers_are_read(monkeypatch):
     ]
 
 
+def test_engine_and_its_threads_are_read():
+    """engine selects the physics engine; mujoco_threads sizes its mujoco.batch pool."""
+    from peghole_mjx.envs.engine_mujoco import MujocoEngine, available_threads
+    from peghole_mjx.envs.engines import MjxEngine
+
+    assert isinstance(envs.load(ENV).engine, MjxEngine)
+    one = envs.load(ENV, config_overrides={"engine": "mujoco", "mujoco_threads": 1}).engine
+    every = envs.load(ENV, config_overrides={"engine": "mujoco"}).engine
+    assert isinstance(one, MujocoEngine) and one.threads == 1
+    assert every.threads == available_threads()
+    assert one._pool(2).batch.nthread == 1
+
+
 # ---------------------------------------------------------------------- coverage and wiring
 def _leaves(c, prefix=""):
     for k, v in c.items():
@@ -270,7 +283,8 @@ def _leaves(c, prefix=""):
 
 
 def test_every_config_entry_is_checked():
-    extra = {"impl", "naconmax", "njmax"}  # test_impl_and_warp_buffers_are_read
+    # test_impl_and_warp_buffers_are_read, test_engine_and_its_threads_are_read
+    extra = {"impl", "naconmax", "njmax", "engine", "mujoco_threads"}
     for name in envs.ALL_ENVS:
         leaves = set(_leaves(envs.get_default_config(name)))
         assert leaves == set(PURE) | set(SCENE) | extra, name

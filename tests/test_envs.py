@@ -10,6 +10,7 @@ import numpy as np
 import pytest
 
 from peghole_mjx import envs
+from peghole_mjx.envs.engines import ENGINES
 from peghole_mjx.envs.reward import REWARD_WEIGHTS, reward_terms
 from peghole_mjx.envs.rollout import random_policy, rollout, scripted_policy
 from peghole_mjx.errors import UserInputError
@@ -21,8 +22,8 @@ N_WORLDS = 8
 class Compiled:
     """One env with its jitted, vmapped reset and step (compiled once per module)."""
 
-    def __init__(self, name: str):
-        self.env = envs.load(name)
+    def __init__(self, name: str, engine: str = "mjx"):
+        self.env = envs.load(name, config_overrides={"engine": engine} if engine != "mjx" else None)
         self.reset = jax.jit(jax.vmap(self.env.reset))
         self.step = jax.jit(jax.vmap(self.env.step))
 
@@ -31,9 +32,10 @@ class Compiled:
 
 
 @functools.cache
-def get_compiled(name: str) -> Compiled:
-    """One jitted env per name for the whole session (an MJX step compiles for minutes)."""
-    return Compiled(name)
+def get_compiled(name: str, engine: str = "mjx") -> Compiled:
+    """One jitted env per name and engine for the whole session (an MJX step compiles for
+    minutes)."""
+    return Compiled(name, engine)
 
 
 @pytest.fixture(scope="module", params=envs.ALL_ENVS)
@@ -41,9 +43,24 @@ def compiled(request) -> Compiled:
     return get_compiled(request.param)
 
 
+#: the task's tests run on every physics engine (envs/engines.py): one task definition
+@pytest.fixture(
+    scope="module",
+    params=[(e, g) for g in ENGINES for e in envs.ALL_ENVS],
+    ids=lambda p: f"{p[0]}-{p[1]}",
+)
+def compiled_any(request) -> Compiled:
+    return get_compiled(*request.param)
+
+
 @pytest.fixture(scope="module")
 def rect() -> Compiled:
     return get_compiled("RectExtract")
+
+
+@pytest.fixture(scope="module", params=ENGINES)
+def rect_any(request) -> Compiled:
+    return get_compiled("RectExtract", request.param)
 
 
 def test_registry():
@@ -123,7 +140,8 @@ def test_feed_forward_accumulates_within_its_bounds():
 
 
 @pytest.mark.slow
-def test_random_actions_200_steps_no_nan_and_determinism(compiled):
+def test_random_actions_200_steps_no_nan_and_determinism(compiled_any):
+    compiled = compiled_any
     env = compiled.env
     s0 = compiled.reset(compiled.keys(0))
     assert s0.obs.shape == (N_WORLDS, env.observation_size) and env.observation_size == 9
@@ -193,7 +211,8 @@ def test_every_reset_is_randomised(rect):
     assert (np.asarray(a.data._impl.contact.dist) > 0).all()  # no contact at the start
 
 
-def test_max_lateral_push_ends_in_jamming_not_a_crash(rect):
+def test_max_lateral_push_ends_in_jamming_not_a_crash(rect_any):
+    rect = rect_any
     s = rect.reset(rect.keys(2))
     push = jnp.tile(jnp.array([1.0, 0.0, 0.0, 1.0, 0.0, 0.0]), (N_WORLDS, 1))
     done_at = np.full(N_WORLDS, -1)
@@ -211,7 +230,8 @@ def test_max_lateral_push_ends_in_jamming_not_a_crash(rect):
     assert (m["reward/end"] == -1).all() and (m["nan"] == 0).all()
 
 
-def test_nan_action_is_applied_as_zero_and_counted_as_a_nan_world(rect):
+def test_nan_action_is_applied_as_zero_and_counted_as_a_nan_world(rect_any):
+    rect = rect_any
     """NaN policy parameters give NaN actions: the world ends like a NaN world, and nothing
     (gains, reward, observation) turns NaN."""
     s = rect.reset(rect.keys(4))
@@ -252,7 +272,8 @@ def test_reward_terms_signs_and_scales():
         assert float(t_fz) == pytest.approx(-0.5)
 
 
-def test_step_logs_named_reward_terms_that_sum_to_the_reward(rect):
+def test_step_logs_named_reward_terms_that_sum_to_the_reward(rect_any):
+    rect = rect_any
     s = rect.reset(rect.keys(3))
     s = rect.step(s, jnp.tile(jnp.array([0, 0, 0.5, 0, 0, 0.0]), (N_WORLDS, 1)))
     terms = sum(

@@ -24,12 +24,19 @@ __all__ = ["impedance_torque", "impedance_torque_c", "rot_from_rotvec", "rot_z",
 
 
 def rotvec_from_mat(R: np.ndarray) -> np.ndarray:
-    """Rotation vector (axis * angle, rad) of a rotation matrix; smooth at zero angle."""
-    s = 0.5 * np.array([R[2, 1] - R[1, 2], R[0, 2] - R[2, 0], R[1, 0] - R[0, 1]])
-    sin = np.linalg.norm(s)
-    cos = 0.5 * (np.trace(R) - 1.0)
+    """Rotation vector (axis * angle, rad) of a rotation matrix; smooth at zero angle.
+
+    ``R`` (..., 3, 3): any leading batch dimensions (one vector per matrix)."""
+    R = np.asarray(R)
+    s = 0.5 * np.stack(
+        [R[..., 2, 1] - R[..., 1, 2], R[..., 0, 2] - R[..., 2, 0], R[..., 1, 0] - R[..., 0, 1]],
+        axis=-1,
+    )
+    sin = np.linalg.norm(s, axis=-1)
+    cos = 0.5 * (np.trace(R, axis1=-2, axis2=-1) - 1.0)
     angle = np.arctan2(sin, cos)
-    return s * (angle / sin if sin > 1e-9 else 1.0)
+    scale = np.where(sin > 1e-9, angle / np.maximum(sin, 1e-9), 1.0)
+    return s * scale[..., None]
 
 
 def rot_from_rotvec(v: np.ndarray) -> np.ndarray:
@@ -48,6 +55,15 @@ def rot_z(a: float) -> np.ndarray:
     return np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
 
 
+def _t(a: np.ndarray) -> np.ndarray:
+    return np.swapaxes(a, -1, -2)
+
+
+def _mv(A: np.ndarray, x: np.ndarray) -> np.ndarray:
+    """Matrix times vector over leading batch dimensions."""
+    return (A @ x[..., None])[..., 0]
+
+
 def impedance_torque(
     J: np.ndarray,
     M: np.ndarray,
@@ -60,10 +76,10 @@ def impedance_torque(
     target_mat: np.ndarray,
     target_vel: np.ndarray,
     stiffness: np.ndarray,
-    damping_ratio: float,
+    damping_ratio: float | np.ndarray,
     wrench_ff: np.ndarray,
     q_null: np.ndarray,
-    null_gains: Sequence[float],
+    null_gains: Sequence[float] | np.ndarray,
     max_wrench: Sequence[float],
     ctrl_lo: np.ndarray,
     ctrl_hi: np.ndarray,
@@ -74,26 +90,34 @@ def impedance_torque(
     on the peg body, ``M`` (n, n) joint-space inertia, ``bias`` (n,) gravity + Coriolis
     torques, ``R`` the peg body's rotation. The rest as in
     :class:`peghole_mjx.control.impedance.ImpedanceController`.
+
+    Every argument may carry the same leading batch dimensions (one world each: ``J`` (..., 6,
+    n), ``damping_ratio`` (...,), ``null_gains`` (..., 2)); the MuJoCo C engine
+    (:mod:`peghole_mjx.envs.engine_mujoco`) calls it once per physics step over all worlds.
     """
-    Rc = target_mat
-    n = J.shape[1]
-    J_loc = np.vstack([Rc.T @ J[:3], Rc.T @ J[3:]])
-    e_p = Rc.T @ (target_pos - x_C)
-    e_r = Rc.T @ rotvec_from_mat(Rc @ R.T)
-    err = np.concatenate([e_p, e_r])
-    v_loc = J_loc @ qvel
-    v_des = np.concatenate([Rc.T @ target_vel, np.zeros(3)])
+    Rc = np.asarray(target_mat)
+    RcT = _t(Rc)
+    n = J.shape[-1]
+    J_loc = np.concatenate([RcT @ J[..., :3, :], RcT @ J[..., 3:, :]], axis=-2)
+    e_p = _mv(RcT, target_pos - x_C)
+    e_r = _mv(RcT, rotvec_from_mat(Rc @ _t(R)))
+    err = np.concatenate([e_p, e_r], axis=-1)
+    v_loc = _mv(J_loc, qvel)
+    v_des = np.concatenate([_mv(RcT, target_vel), np.zeros_like(e_r)], axis=-1)
     Minv = np.linalg.inv(M)
-    Lam = np.linalg.inv(J_loc @ Minv @ J_loc.T + 1e-9 * np.eye(6))
+    MinvJT = Minv @ _t(J_loc)
+    Lam = np.linalg.inv(J_loc @ MinvJT + 1e-9 * np.eye(6))
     K = np.asarray(stiffness, float)
-    D = 2.0 * damping_ratio * np.sqrt(K * np.clip(np.diag(Lam), 0.0, None))
+    zeta = np.asarray(damping_ratio, float)[..., None]
+    D = 2.0 * zeta * np.sqrt(K * np.clip(np.diagonal(Lam, axis1=-2, axis2=-1), 0.0, None))
     w_raw = K * err + D * (v_des - v_loc) + wrench_ff
     cap = np.asarray(max_wrench, float)
     w = np.clip(w_raw, -cap, cap)
-    Jbar = Minv @ J_loc.T @ Lam
-    NT = np.eye(n) - J_loc.T @ Jbar.T
-    tau0 = null_gains[0] * (q_null - q) - null_gains[1] * qvel
-    tau = J_loc.T @ w + bias + NT @ tau0
+    Jbar = MinvJT @ Lam
+    NT = np.eye(n) - _t(J_loc) @ _t(Jbar)
+    gains = np.asarray(null_gains, float)
+    tau0 = gains[..., 0:1] * (q_null - q) - gains[..., 1:2] * qvel
+    tau = _mv(_t(J_loc), w) + bias + _mv(NT, tau0)
     return np.clip(tau, ctrl_lo, ctrl_hi), w
 
 

@@ -22,9 +22,12 @@ from ml_collections import config_dict
 
 from peghole_mjx._mjx import WARP_AVAILABLE, mjx
 from peghole_mjx.control import ControlLimits, ImpedanceController
-from peghole_mjx.control.kinematics import point_on_body, rotvec_from_mat
+from peghole_mjx.control.kinematics import rotvec_from_mat
 from peghole_mjx.envs import iiwa_constants as names
 from peghole_mjx.envs.config import apply_overrides, base_config, env_spec, sim_options
+from peghole_mjx.envs.engine_mujoco import MujocoEngine
+from peghole_mjx.envs.engines import ENGINES, FTReading, MjxEngine, Readout, SceneIds
+from peghole_mjx.envs.engines import contact_overflow as contact_overflow
 from peghole_mjx.errors import UserInputError
 from peghole_mjx.geometry.mjcf import TOOL_DOWN_MAT, build_scene
 from peghole_mjx.geometry.parts import resolve_representation
@@ -37,32 +40,12 @@ __all__ = ["PegHoleBase", "State", "base_config", "contact_overflow"]
 class State:
     """Environment state (MuJoCo Playground layout)."""
 
-    data: mjx.Data
+    data: Any  # the engine's physics state: mjx.Data (mjx), engine_mujoco.CData (mujoco)
     obs: jax.Array
     reward: jax.Array
     done: jax.Array
     metrics: dict[str, jax.Array]
     info: dict[str, Any]
-
-
-#: MuJoCo Warp's ``OverflowType`` bits that mean dropped contacts or constraint rows: NEFC,
-#: NJMAX_NNZ, BROADPHASE, NARROWPHASE, CCD (mujoco_warp/_src/types.py). Its ``overflow``
-#: bitmask is per world and sticky until the world's data is reset.
-WARP_CONTACT_OVERFLOW_BITS = 0b11111
-
-
-def contact_overflow(data) -> jax.Array:
-    """1.0 if MuJoCo Warp overflowed a contact or constraint buffer in this world, else 0.0.
-
-    Warp drops what does not fit in ``naconmax`` / ``njmax`` and only prints a warning; the env
-    ends such an episode as a failure and counts it (``metrics["overflow"]``). MJX-JAX sizes
-    its buffers statically and never overflows: always 0.0 there.
-    """
-    flags = getattr(getattr(data, "_impl", None), "overflow", None)
-    if flags is None:
-        return jnp.zeros((), jnp.float32)
-    hit = (jnp.asarray(flags).astype(jnp.int32) & WARP_CONTACT_OVERFLOW_BITS) != 0
-    return jnp.any(hit).astype(jnp.float32)
 
 
 class PegHoleBase:
@@ -77,8 +60,17 @@ class PegHoleBase:
         self._config = config
         #: the registry name (``envs.load`` sets it: RectExtractHard is a RectExtract class)
         self.env_name = type(self).__name__
+        if config.engine not in ENGINES:
+            raise UserInputError(
+                f"unknown engine {config.engine!r}; choose one of {list(ENGINES)} "
+                "(mjx-warp on the command line: engine mjx with impl warp)"
+            )
         if config.impl not in ("jax", "warp"):
             raise UserInputError(f"impl must be 'jax' or 'warp', got {config.impl!r}")
+        if config.engine == "mujoco" and config.impl != "jax":
+            raise UserInputError(
+                "impl selects MJX's implementation: engine 'mujoco' needs impl jax"
+            )
         if config.impl == "warp" and not WARP_AVAILABLE:
             raise UserInputError(
                 "impl='warp' needs warp-lang and a CUDA GPU: pip install 'peghole_mjx[warp]'"
@@ -140,6 +132,23 @@ class PegHoleBase:
         self._pair_friction0 = np.array(m.pair_friction)
         self._depth0_mm = float(self._hole_pos0[2] - d.site_xpos[self._tip_site][2]) / MM
         self._init_q = jnp.asarray(self._q_inserted)
+        ids = SceneIds(
+            peg_body=self._peg_body,
+            flange_site=self._flange_site,
+            ft_site=self._ft_site,
+            force_adr=self._force_adr,
+            torque_adr=self._torque_adr,
+            hole_mocap=self._hole_mocap,
+            qadr=np.asarray(self._qadr),
+        )
+        #: the physics engine (config ``engine``): the substep loop and the state's readings
+        self.engine = (
+            MujocoEngine(m, self._ctrl, ids, self._n_substeps, threads=config.mujoco_threads)
+            if config.engine == "mujoco"
+            else MjxEngine(
+                self._mjx_model, self._ctrl, ids, config.impl, config.naconmax, config.njmax
+            )
+        )
 
     # ------------------------------------------------------------------ properties
     @property
@@ -168,34 +177,35 @@ class PegHoleBase:
 
     # ------------------------------------------------------------------ data and readings
     def _make_data(self):
+        """An MJX ``mjx.Data`` at the model's defaults (the reset's IK runs in MJX)."""
         c = self._config
         if c.impl == "warp":
             return mjx.make_data(self._mjx_model, impl="warp", naconmax=c.naconmax, njmax=c.njmax)
         return mjx.make_data(self._mjx_model, impl="jax")
 
-    def _tip_world(self, d):
-        return point_on_body(d, self._peg_body, self._tip_local)
+    def _tip_world(self, r: Readout):
+        return r.peg_pos + r.peg_mat @ jnp.asarray(self._tip_local)
 
-    def _depth_mm(self, d, hole_pos, hole_mat):
-        rel = hole_mat.T @ (self._tip_world(d) - hole_pos)
+    def _depth_mm(self, r: Readout, hole_pos, hole_mat):
+        rel = hole_mat.T @ (self._tip_world(r) - hole_pos)
         return -rel[2] / MM
 
-    def contact_wrench(self, d, hole_mat):
+    def contact_wrench(self, reading: FTReading, hole_mat):
         """F/T sensor force and torque in the hole frame with the peg's weight removed (N, N m).
 
         The sensor reads the wrench that the flange side applies to the tool side; the static
         part of it is the peg's weight. The remainder is (minus) the contact load on the peg.
         """
-        R_s = d.site_xmat[self._ft_site]
-        f_world = R_s @ d.sensordata[self._force_adr : self._force_adr + 3]
-        t_world = R_s @ d.sensordata[self._torque_adr : self._torque_adr + 3]
+        R_s = reading.site_mat
+        f_world = R_s @ reading.force
+        t_world = R_s @ reading.torque
         f_world = f_world + self._peg_mass * jnp.asarray(self._gravity)  # remove holding force
         return hole_mat.T @ f_world, hole_mat.T @ t_world
 
-    def _flange_pose(self, d, info):
+    def _flange_pose(self, r: Readout, info):
         """Flange position (m) and tilt (rotation vector vs straight down, rad), hole frame."""
-        rel = info["hole_mat"].T @ (d.site_xpos[self._flange_site] - info["hole_pos"])
-        R = info["hole_mat"].T @ d.site_xmat[self._flange_site] @ jnp.asarray(TOOL_DOWN_MAT).T
+        rel = info["hole_mat"].T @ (r.flange_pos - info["hole_pos"])
+        R = info["hole_mat"].T @ r.flange_mat @ jnp.asarray(TOOL_DOWN_MAT).T
         return rel, rotvec_from_mat(R)
 
 

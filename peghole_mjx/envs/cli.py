@@ -26,13 +26,14 @@ def _override(text: str) -> tuple[str, object]:
 
 def add_parser(sub: argparse._SubParsersAction) -> None:
     from peghole_mjx.envs import ALL_ENVS
+    from peghole_mjx.envs.engines import CLI_ENGINES
 
-    p = sub.add_parser("envs", help="batched MJX environments (RectExtract, DualExtract)")
+    p = sub.add_parser("envs", help=f"batched extraction environments ({', '.join(ALL_ENVS)})")
     esub = p.add_subparsers(dest="envs_cmd", metavar="SUBCOMMAND", required=True)
     r = esub.add_parser(
         "rollout",
         help="run N episodes in one batch and report success, time and forces",
-        description="Runs --episodes randomised episodes side by side (one batch, impl jax), "
+        description="Runs --episodes randomised episodes side by side (one batch), "
         "each until success or failure, and prints success rate, mean extraction time, mean "
         "and peak |F_z|, mean |F_xy|, plus compile time and steps/s. The scripted policy is "
         "the thesis's Ch 2-3 method (fixed compliance at the peg tip, straight pull).",
@@ -43,6 +44,14 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
         default="scripted",
         help="scripted | random | a policy: pretrained name (rect, dual, rect_hard, dual_hard), "
         "policy or run directory",
+    )
+    r.add_argument(
+        "--engine",
+        choices=CLI_ENGINES,
+        default=None,
+        help="physics engine: mjx (MuJoCo MJX), mjx-warp (MuJoCo Warp, CUDA), mujoco (MuJoCo C, "
+        "mujoco.batch threads), auto (mujoco without a GPU, else mjx). Default: auto for "
+        "scripted/random, the policy's own engine for a policy",
     )
     r.add_argument("--episodes", type=arg("episodes"), default=64)
     r.add_argument("--seed", type=arg("seed"), default=0)
@@ -68,13 +77,20 @@ def make_policy(env, name: str):
 
 
 def cmd_rollout(args: argparse.Namespace) -> int:
-    from peghole_mjx.envs import load
+    from peghole_mjx.envs import get_default_config, load
+    from peghole_mjx.envs.engines import engine_overrides
     from peghole_mjx.envs.rollout import rollout
+    from peghole_mjx.geometry.specs import get_preset
 
     overrides = dict(args.overrides)
     if args.preset:
+        kind = get_preset(get_default_config(args.env).preset).kind
+        if get_preset(args.preset).kind != kind:
+            raise UserInputError(f"preset {args.preset} does not fit {args.env} (a {kind} env)")
         overrides["preset"] = args.preset
     bundle, params = None, None
+    if args.engine is not None or args.policy in ("scripted", "random"):
+        overrides = {**engine_overrides(args.engine or "auto"), **overrides}
     if args.policy not in ("scripted", "random"):
         from peghole_mjx.policies import load_policy
 
@@ -88,8 +104,6 @@ def cmd_rollout(args: argparse.Namespace) -> int:
             env = load(args.env, config_overrides=overrides or None)
     except (KeyError, AttributeError) as exc:
         raise UserInputError(f"bad config override: {exc}") from None
-    if env.spec.kind != ("rect" if args.env == "RectExtract" else "dual"):
-        raise UserInputError(f"preset {env.config.preset} does not fit {args.env}")
     if bundle is not None:
         from peghole_mjx.training.evaluate import config_differences
 
@@ -110,11 +124,11 @@ def cmd_rollout(args: argparse.Namespace) -> int:
         "physics_steps_per_s": round(res.physics_steps_per_s, 1),
     }
     if args.json:
-        print(dumps({**summary, **timing}))
+        print(dumps({**summary, **timing, "engine": env.config.engine}))
     else:
         print(
-            f"{args.env} ({env.config.preset}), policy {args.policy}, "
-            f"{summary['episodes']} episodes"
+            f"{args.env} ({env.config.preset}, engine {env.config.engine}), policy "
+            f"{args.policy}, {summary['episodes']} episodes"
         )
         print(f"  success rate   {summary['success_rate']:.3f}")
         print(f"  mean time      {summary['mean_time_s']:.2f} s (successful episodes)")

@@ -25,11 +25,10 @@ import jax
 import jax.numpy as jnp
 from ml_collections import config_dict
 
-from peghole_mjx._mjx import mjx
-from peghole_mjx.control import ImpedanceParams, Target, make_params
+from peghole_mjx.control import ImpedanceParams, make_params
 from peghole_mjx.control.kinematics import newton_ik, rot_z
 from peghole_mjx.envs import iiwa_constants as names
-from peghole_mjx.envs.base import PegHoleBase, State, contact_overflow
+from peghole_mjx.envs.base import PegHoleBase, State
 from peghole_mjx.envs.metrics import zero_metrics
 from peghole_mjx.envs.randomization import randomization_fn
 from peghole_mjx.envs.reward import reward_terms
@@ -252,17 +251,11 @@ class PegHoleEnv(PegHoleBase):
         hole_pos = jnp.asarray(self._hole_pos0) + draw.hole_offset
         hole_mat = rot_z(yaw)
         q = self._solve_start(hole_pos, hole_mat)
-        data = self._make_data()
-        data = data.replace(
-            qpos=data.qpos.at[self._qadr].set(q),
-            mocap_pos=data.mocap_pos.at[self._hole_mocap].set(hole_pos),
-            mocap_quat=data.mocap_quat.at[self._hole_mocap].set(
-                jnp.array([jnp.cos(yaw / 2), 0.0, 0.0, jnp.sin(yaw / 2)])
-            ),
-        )
-        data = mjx.forward(self._mjx_model, data)
+        hole_quat = jnp.array([jnp.cos(yaw / 2), 0.0, 0.0, jnp.sin(yaw / 2)])
+        data = self.engine.init_data(q, hole_pos, hole_quat)
+        r = self.engine.readout(data)
         # commanded pose errors (hole frame): lateral offset in a disc, tilt about x and y
-        cmd_tip = self._tip_world(data) + hole_mat @ draw.lateral_error
+        cmd_tip = self._tip_world(r) + hole_mat @ draw.lateral_error
         cmd_mat = hole_mat @ draw.tilt_mat @ jnp.asarray(TOOL_DOWN_MAT)
         info = {
             "rng": draw.rng,
@@ -275,7 +268,7 @@ class PegHoleEnv(PegHoleBase):
             "k_rot": jnp.asarray(fixed["k_rot"], jnp.float32),
             "L_C": jnp.asarray(fixed["L_C"], jnp.float32),
             "friction_scale": draw.friction_scale,
-            "depth_mm": self._depth_mm(data, hole_pos, hole_mat),
+            "depth_mm": self._depth_mm(r, hole_pos, hole_mat),
             "jam_time": jnp.zeros(()),
             "prev_action": jnp.zeros(self.action_size),
             "step": jnp.zeros((), jnp.int32),
@@ -289,18 +282,18 @@ class PegHoleEnv(PegHoleBase):
             # under control, so the raw reading would hold its free-fall transient)
             "wrench": jnp.zeros(6),
         }
-        obs = self._obs(data, info)
+        obs = self._obs(r, info)
         return State(data, obs, jnp.zeros(()), jnp.zeros(()), zero_metrics(), info)
 
     # ------------------------------------------------------------------ step
     def _decode_action(self, action, info):
         return decode_action(action, info, self._config, self.compliance_actions)
 
-    def _obs(self, d, info) -> jax.Array:
-        pos, rot = self._flange_pose(d, info)
+    def _obs(self, r, info) -> jax.Array:
+        pos, rot = self._flange_pose(r, info)
         cmd_offset = None
         if self._config.obs.commands:
-            cmd_offset = info["hole_mat"].T @ (info["cmd_tip"] - self._tip_world(d))
+            cmd_offset = info["hole_mat"].T @ (info["cmd_tip"] - self._tip_world(r))
         return observation(
             pos, rot, info, self._config, self._flange_z0, self.peg_length_m, cmd_offset
         )
@@ -308,27 +301,24 @@ class PegHoleEnv(PegHoleBase):
     def _physics(self, data, info, cmd_tip_prev, cmd_tip, wrench_ff, k_xy, k_rot, L_C):
         """Run the substeps with the impedance law tracking a linearly moving target."""
         c = self._config
-        m = self._mjx_model.replace(
-            pair_friction=jnp.asarray(self._pair_friction0) * info["friction_scale"]
-        )
         cmd_mat = info["cmd_mat"]
         axis = cmd_mat[:, 2]  # peg axis (towards the tip) of the commanded pose
         vel = (cmd_tip - cmd_tip_prev) / c.ctrl_dt
         # force feed-forward: hole frame -> compliance (commanded) frame
         ff = cmd_mat.T @ (info["hole_mat"] @ wrench_ff)
         params = impedance_params(c, k_xy, k_rot, L_C, ff, self._init_q[self._qadr])
+        # the compliance centre's commanded position at the end of each substep: the tip
+        # target moving linearly from the last command to this one
+        frac = jnp.arange(1, self._n_substeps + 1, dtype=jnp.float32) / self._n_substeps
+        tips = cmd_tip_prev + frac[:, None] * (cmd_tip - cmd_tip_prev)
+        targets = tips - L_C * axis
 
-        def substep(d, i):
-            frac = (i + 1.0) / self._n_substeps
-            tip = cmd_tip_prev + frac * (cmd_tip - cmd_tip_prev)
-            target = Target(pos=tip - L_C * axis, mat=cmd_mat, vel=vel)
-            d, _ = self._ctrl.apply(m, d, target, params)
-            d = mjx.step(m, d)
-            f, t = self.contact_wrench(d, info["hole_mat"])
-            return d, jnp.concatenate([f, t])
+        def sense(reading):
+            f, t = self.contact_wrench(reading, info["hole_mat"])
+            return jnp.concatenate([f, t])
 
-        data, wrenches = jax.lax.scan(
-            substep, data, jnp.arange(self._n_substeps, dtype=jnp.float32)
+        data, wrenches = self.engine.substeps(
+            data, targets, cmd_mat, vel, params, info["friction_scale"], sense
         )
         # the F/T reading averaged over the control period (a sensor's anti-aliasing filter):
         # single-substep contact impulses do not reach the observation or the force metrics
@@ -342,20 +332,21 @@ class PegHoleEnv(PegHoleBase):
         data, wrench = self._physics(
             state.data, info, info["cmd_tip"], cmd_tip, wrench_ff, k_xy, k_rot, L_C
         )
-        finite = jnp.all(jnp.isfinite(data.qpos)) & jnp.all(jnp.isfinite(data.qvel))
+        finite = self.engine.readout(data).finite
         # a NaN action (NaN policy parameters) is applied as 0 and ends the episode like a NaN
         # world (counted in nan_worlds)
         finite = finite & jnp.all(jnp.isfinite(action))
         # a NaN world keeps its last finite state and ends its episode; the batch goes on
         data = jax.tree.map(lambda new, old: jnp.where(finite, new, old), data, state.data)
         nan = 1.0 - finite.astype(jnp.float32)
-        overflow = contact_overflow(data)  # warp only: contacts were dropped, end the episode
+        r = self.engine.readout(data)
+        overflow = r.overflow  # warp only: contacts were dropped, end the episode
 
         wrench = jnp.where(finite, wrench, 0.0)
         f = wrench[:3]
         fxy = jnp.linalg.norm(f[:2])
         fz = jnp.abs(f[2])
-        depth = self._depth_mm(data, info["hole_pos"], info["hole_mat"])
+        depth = self._depth_mm(r, info["hole_pos"], info["hole_mat"])
         dz = depth - info["depth_mm"]
         step = info["step"] + 1
         jam_time, jammed, success, failure, done = termination(
@@ -405,5 +396,5 @@ class PegHoleEnv(PegHoleBase):
             k_xy_N_m=jnp.asarray(k_xy, jnp.float32),
             k_rot_Nm_rad=jnp.asarray(k_rot, jnp.float32),
         )
-        obs = self._obs(data, info)
+        obs = self._obs(r, info)
         return State(data, obs, reward, done, metrics, info)

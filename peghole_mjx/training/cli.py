@@ -21,12 +21,17 @@ def _override(text: str) -> tuple[str, object]:
 
 def add_parser(sub: argparse._SubParsersAction) -> None:
     from peghole_mjx.envs import ALL_ENVS
+    from peghole_mjx.envs.engines import CLI_ENGINES
     from peghole_mjx.training.config import default
 
+    engine_help = (
+        "physics engine: mjx (MuJoCo MJX), mjx-warp (MuJoCo Warp, CUDA), mujoco (MuJoCo C on "
+        "mujoco.batch threads), auto (mujoco where JAX has no GPU, else mjx)"
+    )
     t = sub.add_parser(
         "train",
-        help="train a SAC policy (Brax) on an MJX env",
-        description="Brax SAC on an MJX env (RectExtract, DualExtract, their Hard variants) "
+        help="train a SAC policy (Brax) on an extraction env",
+        description="Brax SAC on an extraction env (RectExtract, DualExtract, their Hard variants) "
         "with evaluation, metrics.csv, TensorBoard logs and a checkpoint at every "
         "evaluation; writes learning curves, a rollout GIF and summary.json at the end. "
         "Hyperparameters: train/configs/<ENV>.json (profiles full | cpu | quick). Uses all "
@@ -40,6 +45,13 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
         help="on: the action also sets the lateral stiffness k_xy and the rotational stiffness "
         "K_theta (RL + CS, thesis Sec 4.2; docs/training.md); off: fixed stiffness (default: "
         f"{'on' if default('compliance_strategy') else 'off'}, TrainConfig.compliance_strategy)",
+    )
+    t.add_argument(
+        "--engine",
+        choices=CLI_ENGINES,
+        default="auto",
+        help=engine_help + "; recorded in run.json and the policy (env_overrides.engine). "
+        "Default auto",
     )
     t.add_argument("--profile", choices=("full", "cpu", "quick"), default="full")
     t.add_argument("--quick", action="store_true", help="same as --profile quick (CPU smoke run)")
@@ -122,6 +134,13 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
         "never into a policy folder",
     )
     e.add_argument(
+        "--engine",
+        choices=CLI_ENGINES,
+        default=None,
+        help=engine_help + ". Default: the engine the policy was trained on; another is a "
+        "cross evaluation (--cross)",
+    )
+    e.add_argument(
         "--policy-only",
         action="store_true",
         help="skip the scripted baseline (no force reduction)",
@@ -161,11 +180,17 @@ def train_config_from_args(args: argparse.Namespace):
 
     if not args.env:
         raise UserInputError("--env and --out are required (or --resume DIR)")
+    from peghole_mjx.envs.engines import engine_overrides
+
     cs = None if args.compliance_strategy is None else args.compliance_strategy == "on"
+    overrides = dict(args.overrides)
+    if "env.engine" not in overrides:  # --set env.engine=... wins over --engine
+        eng = engine_overrides(getattr(args, "engine", None) or "auto")
+        overrides = {**{f"env.{k}": v for k, v in eng.items()}, **overrides}
     return load_train_config(
         args.env,
         profile="quick" if args.quick else args.profile,
-        overrides=dict(args.overrides),
+        overrides=overrides,
         compliance_strategy=cs,
     )
 
@@ -329,6 +354,10 @@ def _env_sets(args: argparse.Namespace) -> dict:
         over[key[len("env.") :]] = value
     if args.preset:
         over["preset"] = args.preset
+    if getattr(args, "engine", None):
+        from peghole_mjx.envs.engines import engine_overrides
+
+        over = {**engine_overrides(args.engine), **over}
     return over
 
 

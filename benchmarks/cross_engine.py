@@ -1,0 +1,175 @@
+"""Cross-engine agreement: the scripted baseline on the same episodes on MJX and on MuJoCo C.
+
+For each env (default: all four registered envs), the scripted Ch 2-3 method
+(``peghole_mjx.envs.rollout.scripted_policy``) is rolled out on ``--episodes`` episodes of one
+seed with ``engine=mjx`` (MJX-JAX, float32) and ``engine=mujoco`` (MuJoCo C through
+``mujoco.batch``, float64). Both engines start from the same states (the reset's draw and IK
+are the env's, shared), so the comparison is paired episode by episode.
+
+Per env and engine: success rate (Wilson 95 %), failures by cause, mean and peak |F_z|, mean
+time (``benchmarks.hard_variants.summarise``). Per env: the paired differences mujoco - mjx of
+mean |F_z|, peak |F_z| (bootstrap over episodes, 10 000 resamples, 95 %) and the share of
+episodes whose outcome differs; ``agree`` is true when the two success intervals overlap.
+
+``--engines mujoco`` runs the C engine only; the MJX side of an env is then read from the
+committed scripted result of the same episodes (``hard_variants_<env>_<device>.json``: same
+seed, episodes, batch and env config, MJX), and the comparison is unpaired (success
+intervals, relative mean |F_z|); the entry names its source file.
+
+Slices of ``--batch`` worlds are saved under ``--parts`` as they finish (resume: rerun the
+command). Writes ``benchmarks/results/cross_engine_<device>.json`` (+ ``.csv``, one row per env
+and engine)::
+
+    python -m benchmarks.cross_engine --episodes 256
+    python -m benchmarks.cross_engine --envs RectExtract --episodes 16 --out /tmp/x.json
+"""
+
+from __future__ import annotations
+
+import argparse
+import csv
+import json
+import os
+from pathlib import Path
+
+import numpy as np
+
+import peghole_mjx  # noqa: F401  (sets the XLA CPU flag before JAX starts)
+from benchmarks.bench_common import RESULTS, cpu_label
+from benchmarks.hard_variants import run, summarise
+from peghole_mjx.envs import ALL_ENVS
+from peghole_mjx.provenance import provenance
+
+ENGINES = ("mjx", "mujoco")
+BOOTSTRAP_RESAMPLES, BOOTSTRAP_SEED = 10_000, 0
+
+
+def paired_difference(a: np.ndarray, b: np.ndarray) -> dict:
+    """Mean of ``b - a`` with its 95 % bootstrap interval (episodes resampled in pairs)."""
+    d = np.asarray(b, float) - np.asarray(a, float)
+    idx = np.random.default_rng(BOOTSTRAP_SEED).integers(0, len(d), (BOOTSTRAP_RESAMPLES, len(d)))
+    lo, hi = np.percentile(d[idx].mean(1), [2.5, 97.5])
+    return {"mean": round(float(d.mean()), 4), "ci95": [round(float(lo), 4), round(float(hi), 4)]}
+
+
+def compare(ep: dict[str, dict[str, np.ndarray]]) -> dict:
+    """The paired comparison of the two engines' per-episode arrays."""
+    a, b = ep["mjx"], ep["mujoco"]
+    s_a, s_b = summarise(a), summarise(b)
+    lo = max(s_a["success_ci95"][0], s_b["success_ci95"][0])
+    hi = min(s_a["success_ci95"][1], s_b["success_ci95"][1])
+    return {
+        "success_intervals_overlap": bool(lo <= hi),
+        "outcome_differs_share": round(float(np.mean((a["success"] > 0) != (b["success"] > 0))), 4),
+        "mean_fz_N_mujoco_minus_mjx": paired_difference(a["mean_fz_N"], b["mean_fz_N"]),
+        "peak_fz_N_mujoco_minus_mjx": paired_difference(a["peak_fz_N"], b["peak_fz_N"]),
+        "mean_fz_relative_pct": round(
+            float(100 * (b["mean_fz_N"].mean() / a["mean_fz_N"].mean() - 1)), 2
+        ),
+    }
+
+
+def committed_mjx(name: str, episodes: int, seed: int, batch: int) -> tuple[dict, str] | None:
+    """The committed MJX scripted summary of these episodes (hard_variants), if one exists."""
+    path = RESULTS / f"hard_variants_{name}_{cpu_label()}.json"
+    if not path.exists():
+        return None
+    ref = json.loads(path.read_text())
+    same = (ref.get("episodes"), ref.get("seed"), ref.get("batch"), ref.get("overrides"))
+    if same != (episodes, seed, batch, {}):
+        return None
+    keys = ("episodes", "success_rate", "success_ci95", "failure_rate", "failure_ci95")
+    keys += ("failures_by_cause", "mean_fz_N", "peak_fz_N", "max_peak_fz_N", "mean_fxy_N")
+    keys += ("fz_by_outcome_N", "mean_time_s", "date")
+    return {k: ref[k] for k in keys if k in ref}, path.name
+
+
+def compare_unpaired(a: dict, b: dict) -> dict:
+    """Success intervals and mean |F_z| of two summaries (no per-episode arrays)."""
+    lo = max(a["success_ci95"][0], b["success_ci95"][0])
+    hi = min(a["success_ci95"][1], b["success_ci95"][1])
+    return {
+        "paired": False,
+        "success_intervals_overlap": bool(lo <= hi),
+        "mean_fz_relative_pct": round(100 * (b["mean_fz_N"] / a["mean_fz_N"] - 1), 2),
+    }
+
+
+def main(argv: list[str] | None = None) -> int:
+    p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    p.add_argument("--envs", default=",".join(ALL_ENVS), help="comma list of registered envs")
+    p.add_argument("--engines", default="mjx,mujoco", help="mjx,mujoco or mujoco (see above)")
+    p.add_argument("--episodes", type=int, default=256)
+    p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--batch", type=int, default=64, help="worlds at once")
+    p.add_argument(
+        "--parts",
+        type=Path,
+        default=Path(os.environ.get("TMPDIR", "/tmp")) / "peghole_cross_engine",
+        help="folder of the finished slices (resume)",
+    )
+    p.add_argument("--out", type=Path, help="default: benchmarks/results/cross_engine_<dev>.json")
+    args = p.parse_args(argv)
+    names = [e.strip() for e in args.envs.split(",") if e.strip()]
+    engines = [e.strip() for e in args.engines.split(",") if e.strip()]
+    if engines not in (["mjx", "mujoco"], ["mujoco"]):
+        p.error("--engines is mjx,mujoco or mujoco")
+    unknown = sorted(set(names) - set(ALL_ENVS))
+    if unknown or args.episodes < 2 or args.batch < 1:
+        p.error(f"unknown envs {unknown}" if unknown else "--episodes >= 2 and --batch >= 1")
+    out = args.out or RESULTS / f"cross_engine_{cpu_label()}.json"
+    out.parent.mkdir(parents=True, exist_ok=True)
+    result = {
+        "benchmark": "cross_engine",
+        "method": "scripted (fixed compliance at the tip, straight pull at 20 mm/s)",
+        "episodes": args.episodes,
+        "seed": args.seed,
+        "batch": args.batch,
+        **provenance(),
+        "envs": {},
+    }
+    for name in names:
+        ep, entry = {}, {}
+        ref = None
+        if "mjx" not in engines:
+            ref = committed_mjx(name, args.episodes, args.seed, args.batch)
+            if ref is None:
+                p.error(f"{name}: no committed MJX result of these episodes; run both engines")
+            entry["mjx"] = {**ref[0], "source": ref[1]}
+        for engine in engines:
+            env, ep[engine], wall = run(
+                name, {"engine": engine}, args.episodes, args.seed, args.batch, args.parts
+            )
+            entry[engine] = {"wall_s": round(wall, 1), **summarise(ep[engine])}
+            print(json.dumps({"env": name, "engine": engine, **entry[engine]}), flush=True)
+        entry["preset"], entry["representation"] = env.config.preset, env.representation
+        entry["comparison"] = (
+            compare(ep) if ref is None else compare_unpaired(entry["mjx"], entry["mujoco"])
+        )
+        result["envs"][name] = entry
+        print(json.dumps({"env": name, **entry["comparison"]}), flush=True)
+    if out.exists():  # envs of earlier runs of this file are kept unless rerun
+        result["envs"] = {**json.loads(out.read_text()).get("envs", {}), **result["envs"]}
+    out.write_text(json.dumps(result, indent=2) + "\n")
+    rows = [
+        {"env": n, "engine": g, **_flat(e[g])} for n, e in result["envs"].items() for g in ENGINES
+    ]
+    with open(out.with_suffix(".csv"), "w", newline="") as f:
+        w = csv.DictWriter(f, fieldnames=list(rows[0]))
+        w.writeheader()
+        w.writerows(rows)
+    print(out)
+    return 0
+
+
+def _flat(s: dict) -> dict:
+    keys = ("episodes", "success_rate", "mean_fz_N", "peak_fz_N", "mean_time_s", "wall_s")
+    out = {k: s.get(k) for k in keys}
+    out["source"] = s.get("source", "this run")
+    out["success_lo"], out["success_hi"] = s["success_ci95"]
+    out.update({f"fail_{c}": v for c, v in s["failures_by_cause"].items()})
+    return out
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

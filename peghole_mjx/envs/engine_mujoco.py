@@ -1,0 +1,365 @@
+"""The ``mujoco`` engine: MuJoCo C through ``mujoco.batch`` (MuJoCo >= 4.0), for CPUs.
+
+The env stays pure and jit-able: a world's physics state is MuJoCo's ``mjSTATE_INTEGRATION``
+row (float64), carried in the env ``State`` bit for bit as twice as many uint32 words (JAX
+runs in float32), plus the readings the task uses. A step enters the jitted code through
+``jax.pure_callback`` with ``vmap_method="broadcast_all"``: under ``vmap`` (one or several
+nested levels: worlds, training seeds) the callback receives every world of the call at once
+and steps them on one ``mujoco.batch.Batch`` thread pool. So Brax training, rollouts, the
+Gymnasium adapter and resume work on this engine unchanged.
+
+Per physics substep, over all worlds as array operations (never a Python loop over worlds):
+the Jacobian of the compliance centre from the bound joint axes and anchors (every joint of
+the iiwa is a hinge on the chain to the peg: ``jacp = axis x (x_C - anchor)``,
+``jacr = axis``, as ``mj_jac``), the joint-space inertia from the bound sparse ``M``, then the
+NumPy twin of the impedance law (:func:`peghole_mjx.control.reference.impedance_torque`, tested
+equal to the JAX law), written into ``ctrl``, and one ``Batch.step``. As in MJX, the law reads
+the positions of the start of the last physics step (``mj_step``'s derived fields) with the
+velocities after it.
+
+Per-world randomisation reaches the C engine through per-simulation model fields
+(``Batch.expand("pair_friction")``). A world whose step raises in MuJoCo
+(``SimulationError.ids``) or ends non-finite is returned with ``finite`` false: the env ends its
+episode and counts it (``metrics["nan"]``); the batch goes on. ``mjDSBL_AUTORESET`` is set, so
+MuJoCo never silently resets a diverging world to its defaults.
+"""
+
+from __future__ import annotations
+
+import copy
+import os
+import threading
+
+import jax
+import jax.numpy as jnp
+import mujoco
+import numpy as np
+from flax import struct
+
+from peghole_mjx.control import ImpedanceController, ImpedanceParams
+from peghole_mjx.control.reference import impedance_torque
+from peghole_mjx.envs.engines import FTReading, Readout, SceneIds, Sense
+from peghole_mjx.errors import UserInputError
+
+STATE_SPEC = mujoco.mjtState.mjSTATE_INTEGRATION
+
+
+@struct.dataclass
+class CData:
+    """One world's MuJoCo C state in the env ``State``: the integration state row (float64 as
+    uint32 pairs) and the readings of its last call (float32)."""
+
+    state: jax.Array  # (2 * nstate,) uint32: the mjSTATE_INTEGRATION row's float64 bits
+    qpos: jax.Array  # (nq,)
+    qvel: jax.Array  # (nv,)
+    peg_pos: jax.Array  # (3,)
+    peg_mat: jax.Array  # (3, 3)
+    flange_pos: jax.Array  # (3,)
+    flange_mat: jax.Array  # (3, 3)
+    ok: jax.Array  # () bool: finite and no MuJoCo error in the call that made it
+
+
+def available_threads() -> int:
+    """The CPUs this process may run on (the ``threads`` default, 0)."""
+    try:
+        return len(os.sched_getaffinity(0))
+    except AttributeError:  # not Linux
+        return os.cpu_count() or 1
+
+
+class _Pool:
+    """One ``mujoco.batch.Batch`` of ``nsim`` worlds with the fields the engine binds."""
+
+    def __init__(self, model: mujoco.MjModel, nsim: int, nthread: int):
+        from mujoco.batch import Batch
+
+        self.batch = b = Batch(model, nsim, nthread=nthread)
+        self.state = b.state
+        self.qpos, self.qvel, self.ctrl = b.bind("qpos"), b.bind("qvel"), b.bind("ctrl")
+        self.xpos, self.xmat = b.bind("xpos"), b.bind("xmat")
+        self.xanchor, self.xaxis = b.bind("xanchor"), b.bind("xaxis")
+        self.site_xpos, self.site_xmat = b.bind("site_xpos"), b.bind("site_xmat")
+        self.M, self.bias = b.bind("M"), b.bind("qfrc_bias")
+        self.sensordata = b.bind("sensordata")
+        self.pair_friction = b.expand("pair_friction") if model.npair else None
+
+
+class MujocoEngine:
+    """MuJoCo C on a ``mujoco.batch`` thread pool, behind ``jax.pure_callback``."""
+
+    name = "mujoco"
+
+    def __init__(
+        self,
+        mj_model: mujoco.MjModel,
+        ctrl: ImpedanceController,
+        ids: SceneIds,
+        n_substeps: int,
+        threads: int = 0,
+    ):
+        try:
+            import mujoco.batch
+        except ImportError:
+            raise UserInputError(
+                "engine 'mujoco' needs MuJoCo >= 4.0 (mujoco.batch); installed "
+                f"{mujoco.__version__}"
+            ) from None
+        if not isinstance(threads, int) or isinstance(threads, bool) or threads < 0:
+            raise UserInputError(
+                f"mujoco_threads must be an integer >= 0 (0: all CPUs), got {threads!r}"
+            )
+        m = copy.copy(mj_model)
+        # a diverging world keeps its NaN state (the env ends its episode), as in MJX
+        m.opt.disableflags |= mujoco.mjtDisableBit.mjDSBL_AUTORESET
+        self.model = m
+        self.ctrl = ctrl
+        self.ids = ids
+        self.n_substeps = int(n_substeps)
+        self.threads = int(threads) or available_threads()
+        self._check_chain(m, ctrl)
+        self.nstate = mujoco.mj_stateSize(m, STATE_SPEC)
+        self._pair_friction0 = np.array(m.pair_friction, float)
+        self._q_default = np.array(m.qpos0, float)
+        d0 = mujoco.MjData(m)  # the model's defaults, as mjx.make_data's
+        self._mocap_pos0, self._mocap_quat0 = d0.mocap_pos.copy(), d0.mocap_quat.copy()
+        # M (CSR, lower triangle) -> full (nv, nv)
+        rows = np.repeat(np.arange(m.nv), m.M_rownnz)
+        self._m_rows, self._m_cols = rows, np.asarray(m.M_colind)
+        self._jnt = np.array([m.joint(j).id for j in _arm_joint_names(ctrl, m)])
+        # the arm's dofs are all the model's, in order (checked): no gathers in the law
+        self._all_dofs = np.array_equal(ctrl.dadr, np.arange(m.nv)) and np.array_equal(
+            ctrl.qadr, np.arange(m.nq)
+        )
+        self._pools: dict[int, _Pool] = {}
+        self._lock = threading.Lock()
+        fd = np.dtype(np.float32)
+        n_sub = self.n_substeps
+        self._reading_shapes = (
+            jax.ShapeDtypeStruct((n_sub, 3, 3), fd),
+            jax.ShapeDtypeStruct((n_sub, 3), fd),
+            jax.ShapeDtypeStruct((n_sub, 3), fd),
+        )
+
+    # ------------------------------------------------------------------ model checks
+    @staticmethod
+    def _check_chain(m: mujoco.MjModel, ctrl: ImpedanceController) -> None:
+        """The analytic Jacobian needs every dof to be a hinge on the chain to the peg body."""
+        if m.nv != len(ctrl.dadr) or np.any(m.jnt_type != mujoco.mjtJoint.mjJNT_HINGE):
+            raise UserInputError(
+                "engine 'mujoco' needs a scene whose only joints are the arm's 7 hinges"
+            )
+        chain, b = set(), ctrl.body_id
+        while b > 0:
+            chain.add(int(b))
+            b = int(m.body_parentid[b])
+        if not all(int(j) in chain for j in m.jnt_bodyid):
+            raise UserInputError("engine 'mujoco': a joint is not on the chain to the peg body")
+
+    # ------------------------------------------------------------------ host side
+    def _pool(self, n: int) -> _Pool:
+        pool = self._pools.get(n)
+        if pool is None:
+            pool = self._pools[n] = _Pool(self.model, n, self.threads)
+        return pool
+
+    def full_inertia(self, M: np.ndarray) -> np.ndarray:
+        """(n, nv, nv) joint-space inertia from the bound CSR ``M`` rows (n, nM)."""
+        n = M.shape[0]
+        full = np.zeros((n, self.model.nv, self.model.nv))
+        full[:, self._m_rows, self._m_cols] = M
+        full[:, self._m_cols, self._m_rows] = M
+        return full
+
+    def centre_jacobian(self, p: _Pool, x_C: np.ndarray) -> np.ndarray:
+        """(n, 6, nv) Jacobian of the world points ``x_C`` (n, 3) on the peg body."""
+        axis = p.xaxis[:, self._jnt]  # (n, nj, 3)
+        jacp = np.cross(axis, x_C[:, None, :] - p.xanchor[:, self._jnt])
+        return np.concatenate([np.swapaxes(jacp, 1, 2), np.swapaxes(axis, 1, 2)], axis=1)
+
+    def _law(self, p: _Pool, pos, mat, vel, prm) -> np.ndarray:
+        ctl, body = self.ctrl, self.ctrl.body_id
+        R = p.xmat[:, body].reshape(-1, 3, 3)
+        centre = ctl.tip_local[None, :] - np.array([0.0, 0.0, 1.0]) * prm["L_C"][:, None]
+        x_C = p.xpos[:, body] + (R @ centre[..., None])[..., 0]
+        J, M = self.centre_jacobian(p, x_C), self.full_inertia(p.M)
+        bias, q, qvel = p.bias, p.qpos, p.qvel
+        if not self._all_dofs:
+            d, qa = ctl.dadr, ctl.qadr
+            J, M, bias, q, qvel = J[:, :, d], M[:, d][:, :, d], bias[:, d], q[:, qa], qvel[:, d]
+        tau, _ = impedance_torque(
+            J,
+            M,
+            bias,
+            q,
+            qvel,
+            x_C,
+            R,
+            pos,
+            mat,
+            vel,
+            prm["stiffness"],
+            prm["damping_ratio"],
+            prm["wrench_ff"],
+            prm["q_null"],
+            prm["null_gains"],
+            ctl.limits.max_wrench,
+            ctl.ctrl_lo,
+            ctl.ctrl_hi,
+        )
+        return tau
+
+    def _outputs(self, p: _Pool, ok: np.ndarray):
+        i = self.ids
+        ok = ok & np.isfinite(p.qpos).all(1) & np.isfinite(p.qvel).all(1)
+        f32 = np.float32
+        return (
+            np.ascontiguousarray(p.state).view(np.uint32).copy(),
+            p.qpos.astype(f32),
+            p.qvel.astype(f32),
+            p.xpos[:, i.peg_body].astype(f32),
+            p.xmat[:, i.peg_body].reshape(-1, 3, 3).astype(f32),
+            p.site_xpos[:, i.flange_site].astype(f32),
+            p.site_xmat[:, i.flange_site].reshape(-1, 3, 3).astype(f32),
+            ok,
+        )
+
+    def _run(self, p: _Pool, call) -> np.ndarray:
+        """Run ``call()`` on the pool; the worlds MuJoCo raised in are returned not ok."""
+        from mujoco.batch import SimulationError
+
+        ok = np.ones(p.batch.nsim, bool)
+        try:
+            call()
+        except SimulationError as exc:
+            ok[np.asarray(exc.ids)] = False
+        return ok
+
+    def _host_init(self, q_arm, hole_pos, hole_quat):
+        lead = q_arm.shape[:-1]
+        q_arm = np.asarray(q_arm, float).reshape(-1, q_arm.shape[-1])
+        n = q_arm.shape[0]
+        with self._lock:
+            p = self._pool(n)
+            p.batch.reset(stage=mujoco.mjtStage.mjSTAGE_NONE)
+            p.qpos[:] = self._q_default
+            p.qpos[:, self.ids.qadr] = q_arm
+            mp, mq = p.batch.bind("mocap_pos"), p.batch.bind("mocap_quat")
+            mp[:] = self._mocap_pos0
+            mq[:] = self._mocap_quat0
+            mp[:, self.ids.hole_mocap] = np.asarray(hole_pos, float).reshape(n, 3)
+            mq[:, self.ids.hole_mocap] = np.asarray(hole_quat, float).reshape(n, 4)
+            if p.pair_friction is not None:
+                p.pair_friction[:] = self._pair_friction0
+            ok = self._run(p, p.batch.forward)
+            out = self._outputs(p, ok)
+        return tuple(o.reshape(lead + o.shape[1:]) for o in out)
+
+    def _host_substeps(self, state, targets, mat, vel, fscale, *prm_leaves):
+        lead = state.shape[:-1]
+        state = np.asarray(state).reshape(-1, state.shape[-1])
+        n = state.shape[0]
+
+        def flat(x, tail):
+            return np.asarray(x, float).reshape((n, *tail))
+
+        targets = flat(targets, targets.shape[len(lead) :])
+        mat, vel = flat(mat, (3, 3)), flat(vel, (3,))
+        names = ImpedanceParams._fields
+        prm = {k: flat(v, v.shape[len(lead) :]) for k, v in zip(names, prm_leaves, strict=True)}
+        i = self.ids
+        n_sub = self.n_substeps
+        rmat = np.zeros((n, n_sub, 3, 3), np.float32)
+        rf = np.zeros((n, n_sub, 3), np.float32)
+        rt = np.zeros((n, n_sub, 3), np.float32)
+        with self._lock:
+            p = self._pool(n)
+            p.state[:] = np.ascontiguousarray(state).view(np.float64)
+            if p.pair_friction is not None:
+                p.pair_friction[:] = self._pair_friction0 * np.asarray(fscale, float).reshape(
+                    n, 1, 1
+                )
+            ok = self._run(p, p.batch.forward)
+            for k in range(n_sub):
+                tau = self._law(p, targets[:, k], mat, vel, prm)
+                p.ctrl[:, self.ctrl.act] = np.where(np.isfinite(tau), tau, 0.0)
+                ok &= self._run(p, p.batch.step)
+                rmat[:, k] = p.site_xmat[:, i.ft_site].reshape(-1, 3, 3)
+                rf[:, k] = p.sensordata[:, i.force_adr : i.force_adr + 3]
+                rt[:, k] = p.sensordata[:, i.torque_adr : i.torque_adr + 3]
+            out = self._outputs(p, ok)
+        out = (*out, rmat, rf, rt)
+        return tuple(o.reshape(lead + o.shape[1:]) for o in out)
+
+    # ------------------------------------------------------------------ JAX side
+    def _data_shapes(self):
+        m, f32 = self.model, np.dtype(np.float32)
+        S = jax.ShapeDtypeStruct
+        return (
+            S((2 * self.nstate,), np.dtype(np.uint32)),
+            S((m.nq,), f32),
+            S((m.nv,), f32),
+            S((3,), f32),
+            S((3, 3), f32),
+            S((3,), f32),
+            S((3, 3), f32),
+            S((), np.dtype(bool)),
+        )
+
+    def init_data(self, q_arm: jax.Array, hole_pos: jax.Array, hole_quat: jax.Array) -> CData:
+        """The state with the arm joints at ``q_arm`` and the hole mocap at its pose, forward."""
+        out = jax.pure_callback(
+            self._host_init,
+            self._data_shapes(),
+            q_arm,
+            hole_pos,
+            hole_quat,
+            vmap_method="broadcast_all",
+        )
+        return CData(*out)
+
+    def readout(self, data: CData) -> Readout:
+        return Readout(
+            peg_pos=data.peg_pos,
+            peg_mat=data.peg_mat,
+            flange_pos=data.flange_pos,
+            flange_mat=data.flange_mat,
+            finite=data.ok,
+            overflow=jnp.zeros((), jnp.float32),
+        )
+
+    def substeps(
+        self,
+        data: CData,
+        targets: jax.Array,
+        target_mat: jax.Array,
+        target_vel: jax.Array,
+        params: ImpedanceParams,
+        friction_scale: jax.Array,
+        sense: Sense,
+    ):
+        """The control step's substeps in MuJoCo C; returns ``(data, wrenches (n_sub, 6))``."""
+        out = jax.pure_callback(
+            self._host_substeps,
+            (*self._data_shapes(), *self._reading_shapes),
+            data.state,
+            targets,
+            target_mat,
+            target_vel,
+            friction_scale,
+            *params,
+            vmap_method="broadcast_all",
+        )
+        new = CData(*out[:8])
+        readings = FTReading(*out[8:])
+        return new, jax.vmap(sense)(readings)
+
+    def to_mjdata(self, data: CData, m: mujoco.MjModel, d: mujoco.MjData) -> None:
+        """Write one world's state into a MuJoCo ``MjData`` (rendering), forward done."""
+        row = np.ascontiguousarray(np.asarray(data.state)).view(np.float64)
+        mujoco.mj_setState(m, d, row, STATE_SPEC)
+        mujoco.mj_forward(m, d)
+
+
+def _arm_joint_names(ctrl: ImpedanceController, m: mujoco.MjModel) -> list[str]:
+    """The joints of the controller's dofs, in dof order."""
+    return [m.joint(int(m.dof_jntid[i])).name for i in ctrl.dadr]

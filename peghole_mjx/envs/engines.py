@@ -1,0 +1,204 @@
+"""The physics seam of the envs: what a physics engine does for the task, and the MJX engine.
+
+The task (:class:`peghole_mjx.envs.extraction.PegHoleEnv`: action decoding, impedance
+parameters, observation, reward, termination, randomisation) is written once. What belongs to
+an engine is only this:
+
+* :meth:`init_data`: the physics state of an episode start (arm joints solved by the task's
+  IK, the hole's mocap pose) with its derived quantities computed;
+* :meth:`substeps`: the control step's physics substeps, the impedance law
+  (:mod:`peghole_mjx.control`) applied before each, tracking the task's commanded targets;
+  returns the new state and the F/T reading of every substep;
+* :meth:`readout`: the few derived quantities the task reads (:class:`Readout`), never
+  engine-specific fields.
+
+Engines, chosen by the env config entry ``engine``:
+
+* ``mjx`` (:class:`MjxEngine`, this module): MuJoCo MJX, ``impl`` ``jax`` (CPU, GPU) or
+  ``warp`` (MuJoCo Warp, CUDA GPU); the state is an ``mjx.Data``;
+* ``mujoco`` (:class:`peghole_mjx.envs.engine_mujoco.MujocoEngine`): MuJoCo C through
+  ``mujoco.batch`` on a thread pool, entered from the jitted env through ``jax.pure_callback``;
+  the state is MuJoCo's integration state row, float64 carried bit for bit.
+
+Both engines read the law's inputs with the same one-substep lag (the positions at the start
+of the last physics step, as ``mj_step`` leaves them) and the same F/T sensor rows.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from typing import NamedTuple
+
+import jax
+import jax.numpy as jnp
+import mujoco
+import numpy as np
+
+from peghole_mjx._mjx import mjx
+from peghole_mjx.control import ImpedanceController, ImpedanceParams, Target
+from peghole_mjx.errors import UserInputError
+
+#: the physics engines an env config may name (``engine``); ``mjx-warp`` on the command line is
+#: ``engine=mjx`` with ``impl=warp``
+ENGINES = ("mjx", "mujoco")
+
+#: the ``--engine`` choices of the commands: ``auto`` is :func:`default_engine`
+CLI_ENGINES = ("auto", "mjx", "mjx-warp", "mujoco")
+
+
+def default_engine() -> str:
+    """The faster engine on this machine: ``mujoco`` (MuJoCo C) where JAX has no GPU, else
+    ``mjx`` (measured: benchmarks/results/throughput_engines_cpu-2core.json)."""
+    return "mujoco" if jax.default_backend() == "cpu" else "mjx"
+
+
+def engine_overrides(choice: str) -> dict[str, str]:
+    """The env config entries of an ``--engine`` choice (``mjx-warp``: engine mjx, impl warp)."""
+    if choice not in CLI_ENGINES:
+        raise UserInputError(f"unknown engine {choice!r}; choose one of {list(CLI_ENGINES)}")
+    if choice == "auto":
+        choice = default_engine()
+    if choice == "mjx-warp":
+        return {"engine": "mjx", "impl": "warp"}
+    return {"engine": choice}
+
+
+#: MuJoCo Warp's ``OverflowType`` bits that mean dropped contacts or constraint rows: NEFC,
+#: NJMAX_NNZ, BROADPHASE, NARROWPHASE, CCD (mujoco_warp/_src/types.py). Its ``overflow``
+#: bitmask is per world and sticky until the world's data is reset.
+WARP_CONTACT_OVERFLOW_BITS = 0b11111
+
+
+class Readout(NamedTuple):
+    """What the task reads of a physics state (world frame, SI)."""
+
+    peg_pos: jax.Array  # (3,) peg body origin
+    peg_mat: jax.Array  # (3, 3) peg body rotation
+    flange_pos: jax.Array  # (3,) flange site
+    flange_mat: jax.Array  # (3, 3) flange site rotation
+    finite: jax.Array  # () bool: the state holds no NaN/inf and the engine raised no error
+    overflow: jax.Array  # () float 1.0 if the engine dropped contacts (MuJoCo Warp), else 0.0
+
+
+class FTReading(NamedTuple):
+    """The F/T sensor of one physics substep: its site rotation and its force/torque rows
+    (sensor frame, as MuJoCo's force and torque sensors report them)."""
+
+    site_mat: jax.Array  # (3, 3)
+    force: jax.Array  # (3,)
+    torque: jax.Array  # (3,)
+
+
+#: ``sense(FTReading) -> (6,)``: the task's wrench of a substep's reading (peg weight removed,
+#: hole frame); each engine applies it to every substep's reading
+Sense = Callable[[FTReading], jax.Array]
+
+
+class SceneIds(NamedTuple):
+    """The ids an engine needs, resolved by name once (:class:`~peghole_mjx.envs.base.PegHoleBase`
+    does)."""
+
+    peg_body: int
+    flange_site: int
+    ft_site: int
+    force_adr: int
+    torque_adr: int
+    hole_mocap: int
+    qadr: np.ndarray
+
+
+def contact_overflow(data) -> jax.Array:
+    """1.0 if MuJoCo Warp overflowed a contact or constraint buffer in this world, else 0.0.
+
+    Warp drops what does not fit in ``naconmax`` / ``njmax`` and only prints a warning; the env
+    ends such an episode as a failure and counts it (``metrics["overflow"]``). MJX-JAX sizes
+    its buffers statically and never overflows: always 0.0 there.
+    """
+    flags = getattr(getattr(data, "_impl", None), "overflow", None)
+    if flags is None:
+        return jnp.zeros((), jnp.float32)
+    hit = (jnp.asarray(flags).astype(jnp.int32) & WARP_CONTACT_OVERFLOW_BITS) != 0
+    return jnp.any(hit).astype(jnp.float32)
+
+
+class MjxEngine:
+    """MuJoCo MJX (``impl`` jax or warp): the state is an ``mjx.Data``, everything is JAX."""
+
+    name = "mjx"
+
+    def __init__(
+        self,
+        mjx_model,
+        ctrl: ImpedanceController,
+        ids: SceneIds,
+        impl: str = "jax",
+        naconmax: int = 64,
+        njmax: int = 256,
+    ):
+        self.model = mjx_model
+        self.ctrl = ctrl
+        self.ids = ids
+        self.impl = impl
+        self._buffers = {"naconmax": naconmax, "njmax": njmax} if impl == "warp" else {}
+        self._pair_friction0 = np.asarray(mjx_model.pair_friction)
+
+    def make_data(self):
+        """An ``mjx.Data`` at the model's defaults (no forward pass)."""
+        return mjx.make_data(self.model, impl=self.impl, **self._buffers)
+
+    def init_data(self, q_arm: jax.Array, hole_pos: jax.Array, hole_quat: jax.Array):
+        """The state with the arm joints at ``q_arm`` and the hole mocap at its pose, forward."""
+        i = self.ids
+        data = self.make_data()
+        data = data.replace(
+            qpos=data.qpos.at[i.qadr].set(q_arm),
+            mocap_pos=data.mocap_pos.at[i.hole_mocap].set(hole_pos),
+            mocap_quat=data.mocap_quat.at[i.hole_mocap].set(hole_quat),
+        )
+        return mjx.forward(self.model, data)
+
+    def readout(self, data) -> Readout:
+        i = self.ids
+        finite = jnp.all(jnp.isfinite(data.qpos)) & jnp.all(jnp.isfinite(data.qvel))
+        return Readout(
+            peg_pos=data.xpos[i.peg_body],
+            peg_mat=data.xmat[i.peg_body],
+            flange_pos=data.site_xpos[i.flange_site],
+            flange_mat=data.site_xmat[i.flange_site],
+            finite=finite,
+            overflow=contact_overflow(data),
+        )
+
+    def ft_reading(self, data) -> FTReading:
+        i = self.ids
+        return FTReading(
+            site_mat=data.site_xmat[i.ft_site],
+            force=data.sensordata[i.force_adr : i.force_adr + 3],
+            torque=data.sensordata[i.torque_adr : i.torque_adr + 3],
+        )
+
+    def substeps(
+        self,
+        data,
+        targets: jax.Array,
+        target_mat: jax.Array,
+        target_vel: jax.Array,
+        params: ImpedanceParams,
+        friction_scale: jax.Array,
+        sense: Sense,
+    ):
+        """One physics step per row of ``targets`` (n_sub, 3: the compliance centre's commanded
+        position), the law before each; returns ``(data, wrenches (n_sub, 6))``."""
+        m = self.model.replace(pair_friction=jnp.asarray(self._pair_friction0) * friction_scale)
+
+        def substep(d, pos):
+            d, _ = self.ctrl.apply(m, d, Target(pos=pos, mat=target_mat, vel=target_vel), params)
+            d = mjx.step(m, d)
+            return d, sense(self.ft_reading(d))
+
+        return jax.lax.scan(substep, data, targets)
+
+    def to_mjdata(self, data, m: mujoco.MjModel, d: mujoco.MjData) -> None:
+        """Write one world's state into a MuJoCo ``MjData`` (rendering), forward done."""
+        mjx.get_data_into(d, m, data)
+        mujoco.mj_forward(m, d)
