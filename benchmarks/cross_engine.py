@@ -16,6 +16,12 @@ committed scripted result of the same episodes (``hard_variants_<env>_<device>.j
 seed, episodes, batch and env config, MJX), and the comparison is unpaired (success
 intervals, relative mean |F_z|); the entry names its source file.
 
+``--policies rect,dual,rect_hard,dual_hard``: each published policy (trained on MJX) and the
+scripted baseline evaluated on the ``mujoco`` engine (a cross evaluation, ``peghole evaluate
+NAME --engine mujoco --cross``) on ``--episodes`` episodes of the seed, beside the policy's
+committed MJX evaluation (``evaluation.json`` in its folder: seed 0, its own episode count; the
+first episodes are the same, the comparison is unpaired).
+
 Slices of ``--batch`` worlds are saved under ``--parts`` as they finish (resume: rerun the
 command). Writes ``benchmarks/results/cross_engine_<device>.json`` (+ ``.csv``, one row per env
 and engine)::
@@ -36,6 +42,7 @@ import numpy as np
 
 import peghole_mjx  # noqa: F401  (sets the XLA CPU flag before JAX starts)
 from benchmarks.bench_common import RESULTS, cpu_label
+from benchmarks.capsule_fidelity import wilson
 from benchmarks.hard_variants import run, summarise
 from peghole_mjx.envs import ALL_ENVS
 from peghole_mjx.provenance import provenance
@@ -95,9 +102,59 @@ def compare_unpaired(a: dict, b: dict) -> dict:
     }
 
 
+def policy_on_c(name: str, episodes: int, seed: int, batch: int, parts: Path) -> dict:
+    """A published policy and the baseline on the mujoco engine, beside its MJX evaluation."""
+    from peghole_mjx.policies import load_policy
+    from peghole_mjx.training.evaluate import evaluate
+
+    bundle = load_policy(name)
+    mjx_eval = json.loads((Path(bundle.path) / "evaluation.json").read_text())
+    res = evaluate(
+        bundle,
+        episodes,
+        seed=seed,
+        batch=batch,
+        parts_dir=parts / f"policy_{name}",
+        env_overrides={"engine": "mujoco"},
+        cross=True,
+    )
+    keep = ("success_rate", "mean_time_s", "mean_fz_N", "peak_fz_N", "mean_fxy_N", "episodes")
+    entry = {
+        "env": res["env"],
+        "mjx": {
+            "source": f"{Path(bundle.path).name}/evaluation.json",
+            "seed": mjx_eval["seed"],
+            "policy": {k: mjx_eval["policy"][k] for k in keep},
+            "baseline": {k: mjx_eval["baseline"][k] for k in keep},
+            "force_reduction_pct": mjx_eval["force_reduction_pct"],
+        },
+        "mujoco": {
+            "policy": {k: res["policy"][k] for k in keep},
+            "baseline": {k: res["baseline"][k] for k in keep},
+            "force_reduction_pct": res["force_reduction_pct"],
+        },
+    }
+    a, b = entry["mjx"]["policy"], entry["mujoco"]["policy"]
+    wa = wilson(round(a["success_rate"] * a["episodes"]), a["episodes"])
+    wb = wilson(round(b["success_rate"] * b["episodes"]), b["episodes"])
+    entry["mjx"]["policy"]["success_ci95"], entry["mujoco"]["policy"]["success_ci95"] = wa, wb
+    entry["comparison"] = {
+        "paired": False,
+        "policy_success_intervals_overlap": bool(max(wa[0], wb[0]) <= min(wa[1], wb[1])),
+        "policy_mean_fz_relative_pct": round(100 * (b["mean_fz_N"] / a["mean_fz_N"] - 1), 2),
+        "force_reduction_pct_mjx_vs_mujoco": [
+            round(entry["mjx"]["force_reduction_pct"], 2),
+            round(entry["mujoco"]["force_reduction_pct"], 2),
+        ],
+    }
+    return entry
+
+
 def main(argv: list[str] | None = None) -> int:
     p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    p.add_argument("--envs", default=",".join(ALL_ENVS), help="comma list of registered envs")
+    p.add_argument(
+        "--envs", default=",".join(ALL_ENVS), help="comma list of registered envs ('' for none)"
+    )
     p.add_argument("--engines", default="mjx,mujoco", help="mjx,mujoco or mujoco (see above)")
     p.add_argument("--episodes", type=int, default=256)
     p.add_argument("--seed", type=int, default=0)
@@ -108,9 +165,10 @@ def main(argv: list[str] | None = None) -> int:
         default=Path(os.environ.get("TMPDIR", "/tmp")) / "peghole_cross_engine",
         help="folder of the finished slices (resume)",
     )
+    p.add_argument("--policies", default="", help="comma list of published policies (above)")
     p.add_argument("--out", type=Path, help="default: benchmarks/results/cross_engine_<dev>.json")
     args = p.parse_args(argv)
-    names = [e.strip() for e in args.envs.split(",") if e.strip()]
+    names = [e.strip() for e in args.envs.split(",") if e.strip()] if args.envs else []
     engines = [e.strip() for e in args.engines.split(",") if e.strip()]
     if engines not in (["mjx", "mujoco"], ["mujoco"]):
         p.error("--engines is mjx,mujoco or mujoco")
@@ -148,8 +206,15 @@ def main(argv: list[str] | None = None) -> int:
         )
         result["envs"][name] = entry
         print(json.dumps({"env": name, **entry["comparison"]}), flush=True)
-    if out.exists():  # envs of earlier runs of this file are kept unless rerun
-        result["envs"] = {**json.loads(out.read_text()).get("envs", {}), **result["envs"]}
+    result["policies"] = {}
+    for name in [x.strip() for x in args.policies.split(",") if x.strip()]:
+        pol = policy_on_c(name, args.episodes, args.seed, args.batch, args.parts)
+        result["policies"][name] = pol
+        print(json.dumps({"policy": name, **pol["comparison"]}), flush=True)
+    if out.exists():  # entries of earlier runs of this file are kept unless rerun
+        old = json.loads(out.read_text())
+        for key in ("envs", "policies"):
+            result[key] = {**old.get(key, {}), **result[key]}
     out.write_text(json.dumps(result, indent=2) + "\n")
     rows = [
         {"env": n, "engine": g, **_flat(e[g])} for n, e in result["envs"].items() for g in ENGINES

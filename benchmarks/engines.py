@@ -118,49 +118,49 @@ def run_mjx(
     }
 
 
-def run_env_mujoco(scene: str, worlds: int, chunk: int, min_time: float, threads: int) -> dict:
+def run_env_mujoco(
+    scene: str, worlds: int, chunk: int, min_time: float, threads: int, ceiling: bool = False
+) -> dict:
     """The env on the ``mujoco`` engine (MuJoCo C via mujoco.batch, ``threads`` threads, 0 =
-    all): the same jitted, scanned ``vmap(env.step)`` as :func:`run_mjx`."""
+    all): the same jitted, scanned ``vmap(env.step)`` as :func:`run_mjx`.
+
+    ``ceiling``: the row's rates are those of ``Batch.step`` alone in the same run (the
+    physics of the env's own states with the law's cost taken out: what the engine would
+    reach if its host law and callback cost nothing)."""
+    from peghole_mjx import envs
+    from peghole_mjx.envs.engine_mujoco import available_threads
+
     over = {"engine": "mujoco", "mujoco_threads": threads}
-    row = run_mjx(scene, worlds, "jax", chunk, min_time, engine_overrides=over)
-    from peghole_mjx.envs.engine_mujoco import available_threads
+    captured = {}
+    load = envs.load
 
+    def spy(*a, **k):  # the env run_mjx builds: its engine's timers
+        env = load(*a, **k)
+        captured["engine"] = env.engine
+        return env
+
+    envs.load = spy
+    try:
+        row = run_mjx(scene, worlds, "jax", chunk, min_time, engine_overrides=over)
+    finally:
+        envs.load = load
+    t = captured["engine"].timing
     row["device"] = cpu_device()
-    row["extra"]["threads"] = threads or available_threads()
+    share = t["batch_step_s"] / max(t["callback_s"], 1e-12)
+    row["extra"].update(
+        threads=threads or available_threads(),
+        batch_step_share_of_callback=round(share, 3),
+        callback_s=round(t["callback_s"], 2),
+        batch_step_s=round(t["batch_step_s"], 2),
+    )
+    if ceiling:
+        # every call of the run (warm-up and reset included) is timed alike: the rates scale by
+        # the callbacks' time over Batch.step's
+        row["physics_steps_per_s"] /= share
+        row["env_steps_per_s"] /= share
+        row["compile_s"] = None
+        row["extra"]["law"] = "none: Batch.step time alone, same run and states"
     return row
-
-
-def run_batch_ceiling(scene: str, worlds: int, min_time: float) -> dict:
-    """``mujoco.batch.Batch.step`` of the env's scene with no law (the controls held at the
-    start's gravity compensation) on all threads: the ceiling of the ``mujoco`` engine."""
-    import mujoco
-    from mujoco.batch import Batch
-
-    from peghole_mjx.envs.engine_mujoco import available_threads
-
-    env = load_env_quiet(scene)
-    m = copy.copy(env.mj_model)
-    m.opt.disableflags |= mujoco.mjtDisableBit.mjDSBL_AUTORESET
-    b = Batch(m, worlds, nthread=0)
-    b.reset(keyframe=m.key("inserted").id)
-    ctrl = b.bind("ctrl")
-    ctrl[:] = b.bind("qfrc_bias")[:, env.engine.ctrl.dadr]
-    b.step(nstep=env.n_substeps)  # warm-up
-    steps, t0 = 0, time.perf_counter()
-    while True:
-        b.step(nstep=env.n_substeps)
-        steps += worlds
-        elapsed = time.perf_counter() - t0
-        if elapsed >= min_time:
-            break
-    return {
-        "device": cpu_device(),
-        "physics_steps_per_s": steps * env.n_substeps / elapsed,
-        "env_steps_per_s": steps / elapsed,
-        "compile_s": None,
-        "peak_mem_mb": max_rss_mb(),
-        "extra": {"threads": available_threads(), "timed_s": round(elapsed, 2), "law": "none"},
-    }
 
 
 # ----------------------------------------------------------------------------- MuJoCo C

@@ -115,6 +115,8 @@ HONOURED = frozenset(
 #: MuJoCo/MJX model settings with no Bullet counterpart (Bullet's contact and solver instead)
 ENGINE_ONLY = frozenset(
     {
+        "engine",
+        "mujoco_threads",
         "impl",
         "naconmax",
         "njmax",

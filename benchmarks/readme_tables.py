@@ -1326,7 +1326,32 @@ def cross_engine() -> str:
     return "\n".join(out)
 
 
+def cross_engine_policies() -> str:
+    """Each published policy (trained on MJX) on both engines."""
+    path = RESULTS / "cross_engine_cpu-2core.json"
+    pol = json.loads(path.read_text()).get("policies", {}) if path.exists() else {}
+    if not pol:
+        return "Not measured yet: `python -m benchmarks.cross_engine --envs '' --policies ...`."
+    out = [
+        "| policy | engine | episodes | success [95 %] | mean F_z N | time s | baseline success "
+        "| reduction vs baseline % | source |",
+        "|---|---|---:|---|---:|---:|---:|---:|---|",
+    ]
+    for name, e in pol.items():
+        for eng in ("mjx", "mujoco"):
+            p_, b = e[eng]["policy"], e[eng]["baseline"]
+            lo, hi = p_["success_ci95"]
+            src = e[eng].get("source", "this run (cross evaluation)")
+            out.append(
+                f"| {name} | {eng} | {p_['episodes']} | {p_['success_rate']:.3f} [{lo:.3f}, "
+                f"{hi:.3f}] | {p_['mean_fz_N']:.3f} | {p_['mean_time_s']:.2f} | "
+                f"{b['success_rate']:.3f} | {e[eng]['force_reduction_pct']:.1f} | {src} |"
+            )
+    return "\n".join(out)
+
+
 TABLES = {
+    "cross_engine_policies": cross_engine_policies,
     "engines_throughput": engines_throughput,
     "engines_ratio": engines_ratio,
     "cross_engine": cross_engine,
@@ -1358,6 +1383,7 @@ TABLES = {
 
 #: the Markdown file (relative to the repository root) that holds each table
 TABLE_FILES = {
+    "cross_engine_policies": "docs/engines.md",
     "engines_throughput": "docs/engines.md",
     "engines_ratio": "README.md",
     "cross_engine": "docs/engines.md",

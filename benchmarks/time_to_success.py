@@ -34,9 +34,12 @@ from benchmarks.seed_stack import DEFAULT_ENV, task_line
 THRESHOLD = 0.95
 
 
-def result_path(env: str, label: str) -> Path:
-    """``train_rect_<label>.json`` for RectExtract, ``train_<env>_<label>.json`` else."""
+def result_path(env: str, label: str, engine: str = "mjx") -> Path:
+    """``train_rect_<label>.json`` for RectExtract, ``train_<env>_<label>.json`` else; with
+    ``engine`` other than mjx, ``..._<engine>_<label>.json``."""
     name = "train_rect" if env == DEFAULT_ENV else f"train_{env}"
+    if engine != "mjx":
+        name = f"{name}_{engine}"
     return RESULTS / f"{name}_{label}.json"
 
 
@@ -100,6 +103,20 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--env", default=DEFAULT_ENV, help="RectExtract or RectExtractHard")
     ap.add_argument("--out", type=Path, default=None, help="run folder (default runs/...)")
     ap.add_argument("--profile", choices=("auto", "cpu", "full"), default="auto")
+    ap.add_argument(
+        "--engine",
+        choices=("mjx", "mujoco"),
+        default="mjx",
+        help="physics engine of the env (docs/engines.md); mujoco writes train_..._mujoco_...",
+    )
+    ap.add_argument(
+        "--set",
+        dest="sets",
+        action="append",
+        default=[],
+        metavar="KEY=VALUE",
+        help="a training config override (JSON value), declared before the run",
+    )
     ap.add_argument("--eval-every", type=int, default=3200, help="env steps between evals")
     ap.add_argument("--eval-episodes", type=int, default=32)
     ap.add_argument("--max-steps", type=int, default=200_000)
@@ -123,6 +140,8 @@ def main(argv: list[str] | None = None) -> int:
         if args.env == DEFAULT_ENV
         else f"runs/time_to_success_{args.env}"
     )
+    if args.engine != "mjx":
+        out_dir = out_dir.with_name(f"{out_dir.name}_{args.engine}")
 
     import jax
 
@@ -141,7 +160,14 @@ def main(argv: list[str] | None = None) -> int:
         # the task measured so far: the action's full speed limit (the cpu/full profiles
         # train the published policy at 25 mm/s)
         "env.action.max_speed_m_s": LIMITS.max_speed_m_s,
+        "env.engine": args.engine,
     }
+    for item in args.sets:
+        key, _, value = item.partition("=")
+        try:
+            overrides[key] = json.loads(value)
+        except ValueError:
+            overrides[key] = value
     cfg = load_train_config(args.env, profile, overrides, compliance_strategy=False)
     load0 = load_average()
     run = TrainingRun(
@@ -170,17 +196,22 @@ def main(argv: list[str] | None = None) -> int:
     label = device_label(jax.devices()[0].device_kind if gpu else None)
     last = rows[-1]
     train_s = float(last["train_wall_s"])
-    command = "python -m benchmarks.time_to_success" + "".join(
-        f" {flag} {value}"
-        for flag, value, default in (
-            ("--env", args.env, DEFAULT_ENV),
-            ("--profile", args.profile, "auto"),
-            ("--budget-s", args.budget_s, None),
-            ("--max-steps", args.max_steps, 200_000),
-            ("--eval-every", args.eval_every, 3200),
-            ("--eval-episodes", args.eval_episodes, 32),
+    command = (
+        "python -m benchmarks.time_to_success"
+        + "".join(
+            f" {flag} {value}"
+            for flag, value, default in (
+                ("--env", args.env, DEFAULT_ENV),
+                ("--profile", args.profile, "auto"),
+                ("--engine", args.engine, "mjx"),
+                ("--budget-s", args.budget_s, None),
+                ("--max-steps", args.max_steps, 200_000),
+                ("--eval-every", args.eval_every, 3200),
+                ("--eval-episodes", args.eval_episodes, 32),
+            )
+            if value != default
         )
-        if value != default
+        + "".join(f" --set {item}" for item in args.sets)
     )
     note = (
         "training clock without evaluations, JIT compilation and replay prefill "
@@ -195,6 +226,8 @@ def main(argv: list[str] | None = None) -> int:
         "date": utc_now(),
         "command": command,
         "profile": profile,
+        "engine": args.engine,
+        "updates_per_env_step": cfg.grad_updates_per_step / cfg.num_envs,
         "config": cfg.as_dict(),
         "budget_s": args.budget_s,
         "success_threshold": THRESHOLD,
@@ -214,7 +247,7 @@ def main(argv: list[str] | None = None) -> int:
         "curve": curve,
         "note": f"{note}; {args.note}" if args.note else note,
     }
-    out = result_path(args.env, label)
+    out = result_path(args.env, label, args.engine)
     out.write_text(json.dumps(result, indent=2) + "\n")
     print(json.dumps({k: result[k] for k in ("time_to_success_s", "env_steps", "device")}))
     print(out)

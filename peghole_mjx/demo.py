@@ -4,8 +4,9 @@ Steps (each also a command of its own):
 
 1. ``peghole models build`` for rect-2 and dual-2 (MJCF scenes with the iiwa);
 2. ``peghole experiment compliance --geometry rect --quick`` (L_C at tip / centre / top);
-3. ``peghole train --env RectExtract --quick`` (a short Brax SAC run; ``--profile full`` on a
-   GPU, which trains to the GPU targets of docs/results.md);
+3. ``peghole train --env RectExtract --profile cpu`` on the ``mujoco`` engine (MuJoCo C, the
+   published rect policy's recipe: 100k env steps, a few minutes on 2 cores; ``--profile full``
+   on MJX on a GPU, which trains to the GPU targets of docs/results.md);
 4. ``peghole evaluate rect`` (the committed pretrained policy vs the scripted baseline);
 5. ``report.md`` linking the figures.
 
@@ -39,9 +40,10 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     )
     p.add_argument(
         "--profile",
-        choices=("auto", "quick", "full"),
+        choices=("auto", "quick", "cpu", "full"),
         default="auto",
-        help="training profile: auto = full on a GPU, quick on a CPU",
+        help="training profile: auto = full on a GPU (engine mjx), cpu on a CPU (engine "
+        "mujoco); quick: a smoke run",
     )
     p.set_defaults(func=cmd_demo)
 
@@ -54,6 +56,7 @@ def _step(name: str) -> float:
 def cmd_demo(args: argparse.Namespace) -> int:
     import jax
 
+    from peghole_mjx.envs.engines import engine_overrides
     from peghole_mjx.errors import UserInputError
     from peghole_mjx.experiments.compliance import ExperimentConfig
     from peghole_mjx.experiments.report import run_experiment
@@ -64,7 +67,7 @@ def cmd_demo(args: argparse.Namespace) -> int:
     from peghole_mjx.training.run import TrainingRun
 
     gpu = jax.default_backend() != "cpu"
-    profile = ("full" if gpu else "quick") if args.profile == "auto" else args.profile
+    profile = ("full" if gpu else "cpu") if args.profile == "auto" else args.profile
     episodes = args.episodes or (1024 if gpu else 32)
     out = args.out
     if (out / "report.md").exists():
@@ -85,9 +88,13 @@ def cmd_demo(args: argparse.Namespace) -> int:
     run_experiment(ExperimentConfig.quick("rect"), out / "compliance")
     timings["experiment"] = time.perf_counter() - t
 
-    t = _step(f"3/4 train SAC on RectExtract (profile {profile})")
-    cfg = load_train_config("RectExtract", profile, compliance_strategy=True)
+    engine = {f"env.{k}": v for k, v in engine_overrides("auto").items()}
+    t = _step(f"3/4 train SAC on RectExtract (profile {profile}, engine {engine['env.engine']})")
+    cfg = load_train_config("RectExtract", profile, engine, compliance_strategy=True)
     train_summary = TrainingRun(cfg, out / "train", render=True).run()
+    print(f"evaluating the trained policy on {episodes} episodes", file=sys.stderr)
+    train_summary["demo_eval"] = evaluate(str(out / "train"), episodes)
+    train_summary["engine"] = engine["env.engine"]
     timings["training"] = time.perf_counter() - t
 
     t = _step(f"4/4 evaluate the pretrained rect policy ({episodes} episodes)")
@@ -148,12 +155,18 @@ def _report(out: Path, tr: dict, ev: dict, timings: dict, profile: str) -> str:
         "",
         *_compliance_table(comp),
         "",
-        f"## 3. Training (RectExtract, RL + compliance strategy, profile {profile})",
+        f"## 3. Training (RectExtract, RL + compliance strategy, profile {profile}, engine "
+        f"{tr['engine']})",
         "",
         f"{tr['env_steps']} env steps in {tr['wall_s']} s; eval return "
         f"{tr['untrained_eval_return']:.2f} untrained -> "
         f"{fe.get('mean_return', float('nan')):.2f}; "
-        f"eval success {fe.get('success_rate', float('nan')):.2f}.",
+        f"eval success {fe.get('success_rate', float('nan')):.2f}. The trained policy on the "
+        f"demo's {tr['demo_eval']['episodes']} evaluation episodes (seed 0): success "
+        f"{tr['demo_eval']['policy']['success_rate']:.3f} (scripted baseline "
+        f"{tr['demo_eval']['baseline']['success_rate']:.3f}), mean F_z "
+        f"{tr['demo_eval']['policy']['mean_fz_N']:.2f} N against "
+        f"{tr['demo_eval']['baseline']['mean_fz_N']:.2f} N.",
         "",
         "![learning curves](train/curves.png)",
         "",

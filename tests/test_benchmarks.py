@@ -593,3 +593,34 @@ def test_contact_caps_are_those_of_the_committed_measurement():
         assert entry.cap == 0 or entry.cap > entry.measured_max
         if (scene, rep) in default_scene_envs:  # the default scene: its hard variant too
             assert set(got["envs"]) == default_scene_envs[(scene, rep)]
+
+
+def test_cross_engine_comparison_is_paired_and_flags_disagreement():
+    from benchmarks.cross_engine import compare, paired_difference
+
+    a = {
+        "success": np.ones(40),
+        "mean_fz_N": np.linspace(1, 2, 40),
+        "peak_fz_N": np.linspace(2, 4, 40),
+        "jammed": np.zeros(40),
+        "overflow": np.zeros(40),
+        "nan": np.zeros(40),
+        "mean_fxy_N": np.zeros(40),
+        "extraction_time_s": np.full(40, 7.0),
+    }
+    b = {**a, "mean_fz_N": a["mean_fz_N"] + 0.5}
+    d = paired_difference(a["mean_fz_N"], b["mean_fz_N"])
+    assert d["mean"] == pytest.approx(0.5) and d["ci95"][0] == pytest.approx(0.5)
+    c = compare({"mjx": a, "mujoco": b})
+    assert c["success_intervals_overlap"] and c["outcome_differs_share"] == 0.0
+    worse = {**a, "success": np.r_[np.ones(10), np.zeros(30)]}
+    c = compare({"mjx": a, "mujoco": worse})
+    assert not c["success_intervals_overlap"] and c["outcome_differs_share"] == 0.75
+
+
+def test_time_to_success_result_names_its_engine():
+    from benchmarks.time_to_success import result_path
+
+    assert result_path("RectExtract", "cpu-2core").name == "train_rect_cpu-2core.json"
+    got = result_path("RectExtractHard", "cpu-2core", "mujoco").name
+    assert got == "train_RectExtractHard_mujoco_cpu-2core.json"

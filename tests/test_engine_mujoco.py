@@ -179,6 +179,26 @@ def test_state_renders_through_mjdata(env, fns):
     np.testing.assert_allclose(d.qpos, np.asarray(one.qpos), atol=1e-6)
 
 
+def test_a_policy_on_another_engine_is_a_cross_evaluation():
+    """The published rect policy was trained on MJX: evaluating it on MuJoCo C is refused in
+    one line naming the engine, before any rollout."""
+    from peghole_mjx.training.evaluate import evaluate
+
+    with pytest.raises(UserInputError, match=r"engine \(trained 'mjx', requested 'mujoco'\)"):
+        evaluate("rect", 2, env_overrides={"engine": "mujoco"}, progress=False)
+
+
+def test_engine_choices_map_to_config_entries():
+    from peghole_mjx.envs.engines import default_engine, engine_overrides
+
+    assert engine_overrides("mjx-warp") == {"engine": "mjx", "impl": "warp"}
+    assert engine_overrides("mujoco") == {"engine": "mujoco"}
+    assert engine_overrides("auto") == {"engine": default_engine()}
+    assert default_engine() == ("mujoco" if jax.default_backend() == "cpu" else "mjx")
+    with pytest.raises(UserInputError, match="unknown engine 'gpu'"):
+        engine_overrides("gpu")
+
+
 def test_engine_bad_input_is_one_line():
     with pytest.raises(UserInputError, match="unknown engine 'bullet'"):
         envs.load("RectExtract", config_overrides={"engine": "bullet"})

@@ -319,6 +319,22 @@ def test_random_policy_rarely_extracts_the_rect_peg(rect):
 
 
 @pytest.mark.slow
+@pytest.mark.parametrize("name", envs.ALL_ENVS)
+def test_cli_rollout_runs_on_every_registered_env(name):
+    """`peghole envs rollout --env E --policy scripted --episodes 4` for every registered env
+    (the hard variants' presets once failed a name check), on the MuJoCo C engine."""
+    res = subprocess.run(
+        [sys.executable, "-m", "peghole_mjx.cli", "envs", "rollout", "--env", name,
+         "--policy", "scripted", "--episodes", "4", "--engine", "mujoco", "--json"],
+        capture_output=True,
+        text=True,
+        timeout=600,
+    )  # fmt: skip
+    assert res.returncode == 0, res.stderr
+    out = strict_json(res.stdout)
+    assert out["episodes"] == 4 and out["engine"] == "mujoco" and out["nan_worlds"] == 0
+
+
 def test_cli_rollout_scripted_rect_8_episodes():
     res = subprocess.run(
         [

@@ -98,14 +98,13 @@ def impedance_torque(
     Rc = np.asarray(target_mat)
     RcT = _t(Rc)
     n = J.shape[-1]
-    J_loc = np.concatenate([RcT @ J[..., :3, :], RcT @ J[..., 3:, :]], axis=-2)
-    e_p = _mv(RcT, target_pos - x_C)
-    e_r = _mv(RcT, rotvec_from_mat(Rc @ _t(R)))
-    err = np.concatenate([e_p, e_r], axis=-1)
+    # J in the compliance frame: both 3-row blocks rotated by Rc^T in one product
+    J_loc = (RcT[..., None, :, :] @ J.reshape((*J.shape[:-2], 2, 3, n))).reshape(J.shape)
+    J_locT = _t(J_loc)
+    err = np.concatenate([_mv(RcT, target_pos - x_C), _mv(RcT, rotvec_from_mat(Rc @ _t(R)))], -1)
     v_loc = _mv(J_loc, qvel)
-    v_des = np.concatenate([_mv(RcT, target_vel), np.zeros_like(e_r)], axis=-1)
-    Minv = np.linalg.inv(M)
-    MinvJT = Minv @ _t(J_loc)
+    v_des = np.concatenate([_mv(RcT, target_vel), np.zeros_like(err[..., 3:])], axis=-1)
+    MinvJT = np.linalg.solve(M, J_locT)  # M^-1 J^T
     Lam = np.linalg.inv(J_loc @ MinvJT + 1e-9 * np.eye(6))
     K = np.asarray(stiffness, float)
     zeta = np.asarray(damping_ratio, float)[..., None]
@@ -113,11 +112,11 @@ def impedance_torque(
     w_raw = K * err + D * (v_des - v_loc) + wrench_ff
     cap = np.asarray(max_wrench, float)
     w = np.clip(w_raw, -cap, cap)
-    Jbar = MinvJT @ Lam
-    NT = np.eye(n) - _t(J_loc) @ _t(Jbar)
     gains = np.asarray(null_gains, float)
     tau0 = gains[..., 0:1] * (q_null - q) - gains[..., 1:2] * qvel
-    tau = _mv(_t(J_loc), w) + bias + _mv(NT, tau0)
+    # J^T w + N^T tau0 with N^T = I - J^T Jbar^T, Jbar = M^-1 J^T Lambda (never formed)
+    Jbar_T_tau0 = _mv(_t(Lam), _mv(_t(MinvJT), tau0))
+    tau = _mv(J_locT, w - Jbar_T_tau0) + bias + tau0
     return np.clip(tau, ctrl_lo, ctrl_hi), w
 
 

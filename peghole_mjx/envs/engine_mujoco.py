@@ -29,6 +29,7 @@ from __future__ import annotations
 import copy
 import os
 import threading
+import time
 
 import jax
 import jax.numpy as jnp
@@ -132,6 +133,9 @@ class MujocoEngine:
         )
         self._pools: dict[int, _Pool] = {}
         self._lock = threading.Lock()
+        #: host seconds spent in the substep callbacks and, within them, in ``Batch.step``
+        #: (the physics alone); read by benchmarks/throughput.py
+        self.timing = {"callback_s": 0.0, "batch_step_s": 0.0, "calls": 0}
         fd = np.dtype(np.float32)
         n_sub = self.n_substeps
         self._reading_shapes = (
@@ -255,6 +259,7 @@ class MujocoEngine:
         return tuple(o.reshape(lead + o.shape[1:]) for o in out)
 
     def _host_substeps(self, state, targets, mat, vel, fscale, *prm_leaves):
+        t_call = time.perf_counter()
         lead = state.shape[:-1]
         state = np.asarray(state).reshape(-1, state.shape[-1])
         n = state.shape[0]
@@ -279,14 +284,21 @@ class MujocoEngine:
                     n, 1, 1
                 )
             ok = self._run(p, p.batch.forward)
+            t_step = 0.0
             for k in range(n_sub):
                 tau = self._law(p, targets[:, k], mat, vel, prm)
                 p.ctrl[:, self.ctrl.act] = np.where(np.isfinite(tau), tau, 0.0)
+                t0 = time.perf_counter()
                 ok &= self._run(p, p.batch.step)
+                t_step += time.perf_counter() - t0
                 rmat[:, k] = p.site_xmat[:, i.ft_site].reshape(-1, 3, 3)
                 rf[:, k] = p.sensordata[:, i.force_adr : i.force_adr + 3]
                 rt[:, k] = p.sensordata[:, i.torque_adr : i.torque_adr + 3]
             out = self._outputs(p, ok)
+            t = self.timing
+            t["batch_step_s"] += t_step
+            t["callback_s"] += time.perf_counter() - t_call
+            t["calls"] += 1
         out = (*out, rmat, rf, rt)
         return tuple(o.reshape(lead + o.shape[1:]) for o in out)
 
