@@ -505,16 +505,20 @@ def test_training_config_from_a_damaged_run_json():
 
 def test_train_config_owns_every_default_and_the_cli_agrees_with_python(tmp_path):
     """TrainConfig holds the shared defaults (compliance strategy on); ``peghole train``
-    without flags and ``load_train_config`` from Python build the same config."""
+    without flags and ``load_train_config`` from Python build the same config, but for the
+    physics engine the CLI picks (``--engine auto``: envs.engines.default_engine)."""
     from peghole_mjx.cli import build_parser
+    from peghole_mjx.envs.engines import default_engine
     from peghole_mjx.training.cli import train_config_from_args
     from peghole_mjx.training.config import default
+
+    auto = {"env.engine": default_engine()}
 
     assert default("compliance_strategy") is True and default("learning_rate") == 3e-4
     for env in ("RectExtract", "DualExtract"):
         raw = json.loads((CONFIG_DIR / f"{env}.json").read_text())
         assert "common" not in raw  # no second copy of the shared defaults
-        py = load_train_config(env, "quick")
+        py = load_train_config(env, "quick", auto)
         assert py.compliance_strategy is True and py.env_overrides["compliance_strategy"] is True
         assert py.learning_rate == default("learning_rate")
         argv = ["train", "--env", env, "--quick", "--out", str(tmp_path / "run")]
@@ -522,7 +526,7 @@ def test_train_config_owns_every_default_and_the_cli_agrees_with_python(tmp_path
         off = train_config_from_args(
             build_parser().parse_args([*argv, "--compliance-strategy", "off"])
         )
-        assert off == load_train_config(env, "quick", compliance_strategy=False)
+        assert off == load_train_config(env, "quick", auto, compliance_strategy=False)
         assert off.env_overrides["compliance_strategy"] is False
     # env.compliance_strategy is the same setting; a contradiction is refused
     cfg = load_train_config("RectExtract", "quick", {"env.compliance_strategy": False})
