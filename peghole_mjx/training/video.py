@@ -25,7 +25,6 @@ def render_policy_gif(
     import mujoco
     from PIL import Image
 
-    from peghole_mjx._mjx import mjx
     from peghole_mjx.policies import load_policy
 
     bundle = load_policy(policy_path)
@@ -46,8 +45,7 @@ def render_policy_gif(
     key = jax.random.PRNGKey(seed + 1)
     for t in range(n):
         if t % every == 0:
-            mjx.get_data_into(d, m, state.data)
-            mujoco.mj_forward(m, d)
+            env.engine.to_mjdata(state.data, m, d)  # either engine's state, forward done
             renderer.update_scene(d, camera=cam)
             frames.append(Image.fromarray(renderer.render()))
         key, sub = jax.random.split(key)
