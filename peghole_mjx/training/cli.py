@@ -369,8 +369,8 @@ def _in_policy_folder(path: Path) -> bool:
 def _print_evaluation(res: dict) -> None:
     p, b, th = res["policy"], res["baseline"], res["thesis"]
     print(
-        f"{res['policy_path']}: {res['env']} ({res['preset']}), {res['episodes']} episodes, "
-        f"seed {res['seed']}"
+        f"{res['policy_path']}: {res['env']} ({res['preset']}, engine "
+        f"{res.get('engine', 'mjx')}), {res['episodes']} episodes, seed {res['seed']}"
     )
     for key, (trained, now) in res.get("differs_from_training", {}).items():
         print(f"  cross evaluation: {key} = {now!r} (trained {trained!r})")

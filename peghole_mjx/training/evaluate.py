@@ -227,6 +227,7 @@ def evaluate(
         "seed": seed,
         "env": bundle.env_name,
         "preset": env.config.preset,
+        "engine": env.config.engine,  # the physics engine (docs/engines.md)
         "geometry": env.config.geometry or None,  # spec changes from the preset's, if any
         "compliance_strategy": bool(env.config.compliance_strategy),
         # {key: [trained, evaluated]}: empty for an evaluation as trained
