@@ -54,3 +54,18 @@ def test_relative_links_of_the_readme_and_docs_resolve():
             if not (md.parent / target.split("#")[0]).exists():
                 missing.append(f"{md.relative_to(ROOT)}: {target}")
     assert not missing, missing
+
+
+def test_help_texts_show_no_doubled_percent_sign():
+    """argparse %-formats ``help=`` strings, not ``description=``: a "%%" there shows as is."""
+    from peghole_mjx.cli import build_parser
+
+    def walk(parser):
+        yield parser
+        for action in parser._actions:
+            for sub in getattr(action, "choices", None) or {}:
+                if isinstance(action.choices, dict):
+                    yield from walk(action.choices[sub])
+
+    shown = [p.prog for p in walk(build_parser()) if "%%" in p.format_help()]
+    assert not shown, shown

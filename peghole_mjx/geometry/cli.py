@@ -33,7 +33,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
         "check",
         help="measure effective clearance and drop-test every preset (MuJoCo C and MJX-JAX)",
         description="For every preset and collision representation: effective clearance by "
-        "MuJoCo distance queries, min and max over directions (pass: within 2 %% of nominal in "
+        "MuJoCo distance queries, min and max over directions (pass: within 2 % of nominal in "
         "every direction), a free-peg drop test in MuJoCo C and MJX-JAX (pass: tip within 1 mm "
         "of the hole bottom; cylinder: MuJoCo C only), the geoms, contact pairs, MJX contacts "
         "allocated, constraint rows and contact cap. Every preset is checked in each of its "
