@@ -47,6 +47,7 @@ def run_mjx(
     min_time: float,
     representation: str | None = None,
     engine_overrides: dict | None = None,
+    env=None,
 ) -> dict:
     import jax
     import jax.numpy as jnp
@@ -59,7 +60,8 @@ def run_mjx(
     overrides = {"impl": impl, **SCENE_OVERRIDES.get(scene, {}), **(engine_overrides or {})}
     if representation:  # the env's default otherwise (dual: capsule)
         overrides["representation"] = representation
-    env = envs.load(SCENES[scene], config_overrides=overrides)
+    if env is None:
+        env = envs.load(SCENES[scene], config_overrides=overrides)
     action = scripted_policy(env)(None, None)
     n_reset = worlds if (gpu or impl == "warp") else min(worlds, 8)
     t0 = time.perf_counter()
@@ -130,21 +132,10 @@ def run_env_mujoco(
     from peghole_mjx import envs
     from peghole_mjx.envs.engine_mujoco import available_threads
 
-    over = {"engine": "mujoco", "mujoco_threads": threads}
-    captured = {}
-    load = envs.load
-
-    def spy(*a, **k):  # the env run_mjx builds: its engine's timers
-        env = load(*a, **k)
-        captured["engine"] = env.engine
-        return env
-
-    envs.load = spy
-    try:
-        row = run_mjx(scene, worlds, "jax", chunk, min_time, engine_overrides=over)
-    finally:
-        envs.load = load
-    t = captured["engine"].timing
+    over = {**SCENE_OVERRIDES.get(scene, {}), "engine": "mujoco", "mujoco_threads": threads}
+    env = envs.load(SCENES[scene], config_overrides=over)
+    row = run_mjx(scene, worlds, "jax", chunk, min_time, env=env)
+    t = env.engine.timing
     row["device"] = cpu_device()
     share = t["batch_step_s"] / max(t["callback_s"], 1e-12)
     row["extra"].update(

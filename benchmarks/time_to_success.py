@@ -29,6 +29,7 @@ import sys
 from pathlib import Path
 
 from benchmarks.bench_common import RESULTS, device_label, load_average, utc_now
+from benchmarks.hard_variants import parse_overrides
 from benchmarks.seed_stack import DEFAULT_ENV, task_line
 
 THRESHOLD = 0.95
@@ -115,7 +116,7 @@ def main(argv: list[str] | None = None) -> int:
         action="append",
         default=[],
         metavar="KEY=VALUE",
-        help="a training config override (JSON value), declared before the run",
+        help="a training config override (Python literal value), declared before the run",
     )
     ap.add_argument("--eval-every", type=int, default=3200, help="env steps between evals")
     ap.add_argument("--eval-episodes", type=int, default=32)
@@ -162,12 +163,7 @@ def main(argv: list[str] | None = None) -> int:
         "env.action.max_speed_m_s": LIMITS.max_speed_m_s,
         "env.engine": args.engine,
     }
-    for item in args.sets:
-        key, _, value = item.partition("=")
-        try:
-            overrides[key] = json.loads(value)
-        except ValueError:
-            overrides[key] = value
+    overrides.update(parse_overrides(args.sets))
     cfg = load_train_config(args.env, profile, overrides, compliance_strategy=False)
     load0 = load_average()
     run = TrainingRun(

@@ -126,7 +126,7 @@ class MujocoEngine:
         # M (CSR, lower triangle) -> full (nv, nv)
         rows = np.repeat(np.arange(m.nv), m.M_rownnz)
         self._m_rows, self._m_cols = rows, np.asarray(m.M_colind)
-        self._jnt = np.array([m.joint(j).id for j in _arm_joint_names(ctrl, m)])
+        self._jnt = np.asarray(m.dof_jntid)[ctrl.dadr]  # the joint of each arm dof
         # the arm's dofs are all the model's, in order (checked): no gathers in the law
         self._all_dofs = np.array_equal(ctrl.dadr, np.arange(m.nv)) and np.array_equal(
             ctrl.qadr, np.arange(m.nq)
@@ -370,8 +370,3 @@ class MujocoEngine:
         row = np.ascontiguousarray(np.asarray(data.state)).view(np.float64)
         mujoco.mj_setState(m, d, row, STATE_SPEC)
         mujoco.mj_forward(m, d)
-
-
-def _arm_joint_names(ctrl: ImpedanceController, m: mujoco.MjModel) -> list[str]:
-    """The joints of the controller's dofs, in dof order."""
-    return [m.joint(int(m.dof_jntid[i])).name for i in ctrl.dadr]
