@@ -125,19 +125,51 @@ def load_average() -> tuple[float, float, float] | None:
         return None
 
 
+#: the room a benchmark's output needs by default (its JSON/CSV results are a few MB at most)
+OUT_BYTES = 16 << 20
+
+
+def check_out(path: Path | str, need_bytes: int = OUT_BYTES, what: str = "--out") -> Path:
+    """Before a benchmark's work: ``path`` can be written as a file (its folder created,
+    a real write probed) and its disk has ``need_bytes`` free; else a one-line
+    :class:`~peghole_mjx.errors.UserInputError`."""
+    from peghole_mjx import fileio
+
+    path = fileio.check_out_file(path, what)
+    fileio.check_room(path, need_bytes, what)
+    return path
+
+
+def out_file(text: str) -> Path:
+    """An argparse ``type`` for a benchmark's ``--out`` file: :func:`check_out` at parse
+    time, so a bad path is one usage line before any work."""
+    import argparse
+
+    from peghole_mjx.errors import UserInputError
+
+    try:
+        return check_out(text)
+    except UserInputError as exc:
+        raise argparse.ArgumentTypeError(str(exc)) from None
+
+
 def write_csv(path: Path | str, rows: Sequence[dict]) -> Path:
-    """Write throughput rows with exactly :data:`COLUMNS` (extra keys are an error)."""
+    """Write throughput rows with exactly :data:`COLUMNS` (extra keys are an error),
+    atomically: a failed write (a bad row, a full disk) leaves the old file as it was."""
+    from peghole_mjx import fileio
+
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
-    with path.open("w", newline="") as f:
+    for r in rows:  # every row checked before anything is written
+        missing, extra = set(COLUMNS) - set(r), set(r) - set(COLUMNS)
+        if missing or extra:
+            raise ValueError(
+                f"row misses columns {sorted(missing)} / has extra {sorted(extra)}: {r}"
+            )
+    with fileio.atomic_open(path, "w") as f:
         w = csv.DictWriter(f, fieldnames=COLUMNS, extrasaction="raise", lineterminator="\n")
         w.writeheader()
         for r in rows:
-            missing, extra = set(COLUMNS) - set(r), set(r) - set(COLUMNS)
-            if missing or extra:
-                raise ValueError(
-                    f"row misses columns {sorted(missing)} / has extra {sorted(extra)}: {r}"
-                )
             w.writerow(r)
     return path
 

@@ -27,11 +27,10 @@ import argparse
 import json
 import sys
 import time
-from pathlib import Path
 
 import numpy as np
 
-from benchmarks.bench_common import RESULTS
+from benchmarks.bench_common import RESULTS, out_file
 
 #: (scene, env, representation) measured
 SCENES = (
@@ -133,7 +132,7 @@ def main(argv: list[str] | None = None) -> int:
         "DualExtractHard:capsule,DualExtract:mesh",
         help="comma-separated ENV:REPRESENTATION of the SCENES table",
     )
-    ap.add_argument("--out", type=Path, default=RESULTS / "contact_caps.json")
+    ap.add_argument("--out", type=out_file, default=RESULTS / "contact_caps.json")
     ap.add_argument("--note", default="")
     args = ap.parse_args(argv)
 

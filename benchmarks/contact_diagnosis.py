@@ -33,13 +33,12 @@ import functools
 import json
 import sys
 import time
-from pathlib import Path
 
 import mujoco
 import numpy as np
 from tqdm import tqdm
 
-from benchmarks.bench_common import RESULTS
+from benchmarks.bench_common import RESULTS, out_file
 from benchmarks.c_replica import pull_c
 from peghole_mjx.experiments import compliance as cx
 from peghole_mjx.experiments import contact_check as cc
@@ -168,7 +167,7 @@ def main() -> int:
         action="store_true",
         help="only (re)run the MJX-vs-C comparison into the existing --out file",
     )
-    ap.add_argument("--out", type=Path, default=RESULTS / "contact_diagnosis.json")
+    ap.add_argument("--out", type=out_file, default=RESULTS / "contact_diagnosis.json")
     args = ap.parse_args()
     if args.mjx_only:
         doc = json.loads(args.out.read_text())

@@ -34,7 +34,6 @@ import argparse
 import json
 import sys
 import time
-from pathlib import Path
 
 import numpy as np
 
@@ -42,6 +41,7 @@ from benchmarks.bench_common import (
     RESULTS,
     device_label,
     load_average,
+    out_file,
     utc_now,
 )
 from benchmarks.engines import gpu_kind
@@ -214,7 +214,7 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--min-time", type=float, default=8.0)
     ap.add_argument("--chunk", type=int, default=5)
     ap.add_argument("--timeout", type=float, default=900)
-    ap.add_argument("--out", type=Path, default=None)
+    ap.add_argument("--out", type=out_file, default=None)
     ap.add_argument("--note", default="")
     args = ap.parse_args(argv)
 

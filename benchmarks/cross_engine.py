@@ -41,7 +41,7 @@ from pathlib import Path
 import numpy as np
 
 import peghole_mjx  # noqa: F401  (sets the XLA CPU flag before JAX starts)
-from benchmarks.bench_common import RESULTS, cpu_label
+from benchmarks.bench_common import RESULTS, cpu_label, out_file
 from benchmarks.capsule_fidelity import wilson
 from benchmarks.hard_variants import run, summarise
 from peghole_mjx.envs import ALL_ENVS
@@ -166,7 +166,9 @@ def main(argv: list[str] | None = None) -> int:
         help="folder of the finished slices (resume)",
     )
     p.add_argument("--policies", default="", help="comma list of published policies (above)")
-    p.add_argument("--out", type=Path, help="default: benchmarks/results/cross_engine_<dev>.json")
+    p.add_argument(
+        "--out", type=out_file, help="default: benchmarks/results/cross_engine_<dev>.json"
+    )
     args = p.parse_args(argv)
     names = [e.strip() for e in args.envs.split(",") if e.strip()] if args.envs else []
     engines = [e.strip() for e in args.engines.split(",") if e.strip()]

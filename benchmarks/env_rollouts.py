@@ -15,6 +15,7 @@ import json
 from pathlib import Path
 
 import peghole_mjx  # noqa: F401  (sets the XLA CPU flag before JAX starts)
+from benchmarks.bench_common import out_file
 from peghole_mjx import envs
 from peghole_mjx.envs.cli import make_policy
 from peghole_mjx.envs.rollout import rollout
@@ -32,7 +33,7 @@ def main() -> None:
         default=16,
         help="episodes of the random policy (it runs to the time limit: costly)",
     )
-    ap.add_argument("--out", type=Path, default=OUT)
+    ap.add_argument("--out", type=out_file, default=OUT)
     args = ap.parse_args()
     rows = []
     for name in envs.ALL_ENVS:

@@ -40,12 +40,11 @@ import dataclasses
 import json
 import multiprocessing as mp
 import time
-from pathlib import Path
 
 import numpy as np
 from tqdm import tqdm
 
-from benchmarks.bench_common import RESULTS, read_parts, run_to_parts
+from benchmarks.bench_common import RESULTS, out_file, read_parts, run_to_parts
 from benchmarks.c_replica import COLUMNS, ENGINE, pull_c
 from benchmarks.pull_speed import (
     AT,
@@ -265,7 +264,7 @@ def main() -> int:
     ap.add_argument("--repeats", type=int, default=REPEATS, help="draws per L_C (<= 16)")
     ap.add_argument("--variants", default=None, help="VARIANTS names separated by ;")
     ap.add_argument("--processes", type=int, default=2)
-    ap.add_argument("--out", type=Path, default=RESULTS / "friction_frontier.json")
+    ap.add_argument("--out", type=out_file, default=RESULTS / "friction_frontier.json")
     ap.add_argument(
         "--diagnose",
         action="store_true",

@@ -34,7 +34,7 @@ import time
 from pathlib import Path
 
 import peghole_mjx  # noqa: F401  (sets the XLA CPU flag before JAX starts)
-from benchmarks.bench_common import RESULTS, cpu_label
+from benchmarks.bench_common import RESULTS, cpu_label, out_file
 from peghole_mjx import fileio
 from peghole_mjx.envs.config import geometry_text
 from peghole_mjx.errors import UserInputError
@@ -184,7 +184,7 @@ def main(argv: list[str] | None = None) -> int:
     )
     ap.add_argument("--no-custom", action="store_true", help="skip the held-out geometry")
     ap.add_argument("--parts", type=Path, help="finished cells and slices (resumable)")
-    ap.add_argument("--out", type=Path, help="JSON to write (the CSV beside it)")
+    ap.add_argument("--out", type=out_file, help="JSON to write (the CSV beside it)")
     ap.add_argument("--no-progress", action="store_true")
     args = ap.parse_args(argv)
 

@@ -39,7 +39,7 @@ from pathlib import Path
 import numpy as np
 
 import peghole_mjx  # noqa: F401  (sets the XLA CPU flag before JAX starts)
-from benchmarks.bench_common import RESULTS, cpu_label
+from benchmarks.bench_common import RESULTS, cpu_label, out_file
 from benchmarks.capsule_fidelity import wilson
 from peghole_mjx import envs
 from peghole_mjx.envs.rollout import rollout, scripted_policy
@@ -141,7 +141,7 @@ def main(argv: list[str] | None = None) -> int:
         help="folder of the finished slices (resume)",
     )
     p.add_argument(
-        "--out", type=Path, help="default: benchmarks/results/hard_variants_<env>_<device>.json"
+        "--out", type=out_file, help="default: benchmarks/results/hard_variants_<env>_<device>.json"
     )
     args = p.parse_args(argv)
     if args.episodes < 1 or args.batch < 1:

@@ -43,6 +43,7 @@ from typing import NamedTuple
 import numpy as np
 from tqdm import tqdm
 
+from benchmarks.bench_common import out_file
 from peghole_mjx.experiments import compliance as cx
 from peghole_mjx.experiments import sweep as sw
 from peghole_mjx.fileio import write_text
@@ -151,7 +152,7 @@ def _strict(a: np.ndarray) -> list[float | None]:
 
 def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    ap.add_argument("--out", type=Path, default=RESULTS / "low_stiffness_check.json")
+    ap.add_argument("--out", type=out_file, default=RESULTS / "low_stiffness_check.json")
     ap.add_argument("--only", choices=list(VARIANTS), help="run this variant only")
     args = ap.parse_args()
     if args.only is None:  # each variant in its own process (float64 is a process-wide flag)

@@ -31,6 +31,7 @@ from pathlib import Path
 
 import numpy as np
 
+from benchmarks.bench_common import out_file
 from peghole_mjx.provenance import utc_now
 from peghole_mjx.training.evaluate import force_reduction_pct
 
@@ -169,13 +170,13 @@ def main() -> None:
         type=Path,
         help="baseline columns from an earlier export (same env, seed, batch)",
     )
-    ex.add_argument("--out", type=Path, required=True)
+    ex.add_argument("--out", type=out_file, required=True)
     an = sub.add_parser("analyse", help="reductions, bootstrap interval, per-episode share")
     an.add_argument("episodes_csv", type=Path)
     an.add_argument("--chosen-on", type=int, default=0, help="episodes used to choose the policy")
     an.add_argument("--slice", type=int, default=256)
     an.add_argument("--evaluated-on", default="", help="device of the evaluation's rollouts")
-    an.add_argument("--out", type=Path, required=True)
+    an.add_argument("--out", type=out_file, required=True)
     args = ap.parse_args()
     if args.cmd == "export":
         export(args.policy_dir, args.baseline_dir, args.out, args.baseline_csv)

@@ -29,7 +29,7 @@ import jax.numpy as jnp
 import numpy as np
 
 import peghole_mjx  # noqa: F401  (sets the XLA CPU flag before JAX starts)
-from benchmarks.bench_common import RESULTS, cpu_label
+from benchmarks.bench_common import RESULTS, cpu_label, out_file
 from benchmarks.hard_variants import failure_causes
 from peghole_mjx.envs.rollout import episode_keys
 from peghole_mjx.errors import UserInputError
@@ -162,7 +162,9 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("--no-progress", action="store_true")
     p.add_argument(
-        "--out", type=Path, help="default: benchmarks/results/policy_trace_<policy>_<device>.json"
+        "--out",
+        type=out_file,
+        help="default: benchmarks/results/policy_trace_<policy>_<device>.json",
     )
     args = p.parse_args(argv)
     try:

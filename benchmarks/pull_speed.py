@@ -55,7 +55,7 @@ import numpy as np
 from scipy.signal import savgol_filter
 from tqdm import tqdm
 
-from benchmarks.bench_common import RESULTS, read_parts, run_to_parts
+from benchmarks.bench_common import RESULTS, out_file, read_parts, run_to_parts
 from benchmarks.c_replica import COLUMNS, ENGINE, pull_c
 from peghole_mjx.experiments import compliance as cx
 from peghole_mjx.experiments import sweep as sw
@@ -635,7 +635,9 @@ def main() -> int:
     ap.add_argument("--repeats", type=int, default=REPEATS)
     ap.add_argument("--seed", type=int, default=0)
     ap.add_argument("--processes", type=int, default=2)
-    ap.add_argument("--out", type=Path, default=None, help="default results/pull_speed_<g>.json")
+    ap.add_argument(
+        "--out", type=out_file, default=None, help="default results/pull_speed_<g>.json"
+    )
     ap.add_argument(
         "--mjx", action="store_true", help="run the MJX spot checks (pull_speed_mjx.json) only"
     )

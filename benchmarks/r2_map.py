@@ -36,7 +36,7 @@ from pathlib import Path
 import numpy as np
 from tqdm import tqdm
 
-from benchmarks.bench_common import RESULTS
+from benchmarks.bench_common import RESULTS, out_file
 from benchmarks.pull_speed import oracle_late_peaks
 from peghole_mjx.control.limits import LIMITS
 from peghole_mjx.experiments import sweep as sw
@@ -161,7 +161,7 @@ def write_figure(rows: list[dict], path: Path) -> Path:
 def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--repeats", type=int, default=GRID.repeats)
-    ap.add_argument("--out", type=Path, default=RESULTS / "r2_map.json")
+    ap.add_argument("--out", type=out_file, default=RESULTS / "r2_map.json")
     args = ap.parse_args()
     if args.repeats < 2:
         raise SystemExit("--repeats must be >= 2 (intervals need two draws)")

@@ -41,6 +41,7 @@ from benchmarks.bench_common import (
     cpu_device,
     cpu_label,
     load_average,
+    out_file,
     utc_now,
     versions_dict,
 )
@@ -186,7 +187,7 @@ def main(argv: list[str] | None = None) -> int:
     )
     ap.add_argument("--seed", type=int, default=0)
     ap.add_argument("--note", default="")
-    ap.add_argument("--out", type=Path, default=None, help="default: result_path(env, device)")
+    ap.add_argument("--out", type=out_file, default=None, help="default: result_path(env, device)")
     args = ap.parse_args(argv)
     out = args.out or result_path(args.env, cpu_label())
 

@@ -35,7 +35,14 @@ from pathlib import Path
 
 import numpy as np
 
-from benchmarks.bench_common import RESULTS, cpu_device, load_average, utc_now, versions_dict
+from benchmarks.bench_common import (
+    RESULTS,
+    cpu_device,
+    load_average,
+    out_file,
+    utc_now,
+    versions_dict,
+)
 from peghole_mjx.envs import get_default_config
 from peghole_mjx.geometry.mjcf import TOOL_DOWN_MAT
 from peghole_mjx.geometry.parts import hole_parts, peg_parts, peg_tip_z_m
@@ -282,7 +289,7 @@ def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--hold-s", type=float, default=0.2, help="hold at the start pose, s")
     ap.add_argument("--note", default="")
-    ap.add_argument("--out", type=Path, default=RESULTS / "seed_stack_dual_hull.json")
+    ap.add_argument("--out", type=out_file, default=RESULTS / "seed_stack_dual_hull.json")
     args = ap.parse_args(argv)
     load0 = load_average()
     runs = run_both(args.hold_s)

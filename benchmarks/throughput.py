@@ -83,6 +83,7 @@ from benchmarks.bench_common import (
     SCENES,
     device_label,
     load_average,
+    out_file,
     read_csv,
     utc_now,
     versions_str,
@@ -255,7 +256,7 @@ def main(argv: list[str] | None = None) -> int:
     )
     ap.add_argument("--scenes", default="rect,dual", help="comma list: rect, dual")
     ap.add_argument("--worlds", default=None, help="comma list overriding the default sweep")
-    ap.add_argument("--out", type=Path, default=None, help="CSV path (default per device)")
+    ap.add_argument("--out", type=out_file, default=None, help="CSV path (default per device)")
     ap.add_argument("--min-time", type=float, default=None, help="timed seconds per row")
     ap.add_argument("--chunk", type=int, default=None, help="env steps per scan chunk (MJX)")
     ap.add_argument("--timeout", type=float, default=900, help="seconds per row")

@@ -26,4 +26,25 @@ if _FLAG.split("=")[0] not in _os.environ.get("XLA_FLAGS", ""):
 if "MUJOCO_GL" not in _os.environ and not _os.environ.get("DISPLAY"):
     _os.environ["MUJOCO_GL"] = "egl"
 
+# A persistent XLA compilation cache, on by default, so that a second run of any command loads
+# its compiled graphs (minutes on a 2-core CPU) from disk: PEGHOLE_JAX_CACHE unset -> the
+# user's cache folder ($XDG_CACHE_HOME or ~/.cache)/peghole_mjx/jax; a path -> that folder;
+# 0 / off -> no cache. JAX's own JAX_COMPILATION_CACHE_DIR, when set, wins. Results are the
+# same with or without it (it stores compiled code, keyed by the graph, flags and versions);
+# jax >= 0.10 caches graphs with host callbacks too (the mujoco engine's step). Set before
+# JAX is imported, like the flag above (docs/reliability.md, "Compilation cache").
+_CACHE = _os.environ.get("PEGHOLE_JAX_CACHE", "").strip()
+if _CACHE.lower() not in ("0", "off", "false", "no") and not _os.environ.get(
+    "JAX_COMPILATION_CACHE_DIR"
+):
+    _base = _os.environ.get("XDG_CACHE_HOME") or _os.path.join(_os.path.expanduser("~"), ".cache")
+    _os.environ["JAX_COMPILATION_CACHE_DIR"] = _CACHE or _os.path.join(_base, "peghole_mjx", "jax")
+    _os.environ.setdefault("JAX_PERSISTENT_CACHE_MIN_COMPILE_TIME_SECS", "1")
+    import sys as _sys
+
+    if "jax" in _sys.modules:  # imported before us: its config has read the environment
+        _jax = _sys.modules["jax"]
+        _jax.config.update("jax_compilation_cache_dir", _os.environ["JAX_COMPILATION_CACHE_DIR"])
+        _jax.config.update("jax_persistent_cache_min_compile_time_secs", 1.0)
+
 __version__ = "0.1.0"

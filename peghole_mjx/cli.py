@@ -8,7 +8,9 @@ from __future__ import annotations
 
 import argparse
 import importlib
+import signal
 import sys
+import threading
 import traceback
 
 import peghole_mjx._mjx  # noqa: F401  (first: keeps mjx's import chatter off stdout)
@@ -61,7 +63,51 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
+class Terminated(KeyboardInterrupt):
+    """SIGTERM (``kill``, a batch scheduler, ``docker stop``), raised in the main thread like
+    Ctrl-C, so that the same clean-up runs: ``with`` blocks exit (a run's lock is released,
+    temporary files are removed) and ``peghole`` ends with one line and exit status 143."""
+
+
+#: exit statuses of an interrupted command: 128 + the signal's number, as a shell reports it
+EXIT_INTERRUPTED = 128 + signal.SIGINT  # 130, Ctrl-C
+EXIT_TERMINATED = 128 + signal.SIGTERM  # 143, SIGTERM
+
+
+def _on_sigterm(signum, frame):
+    # a second SIGTERM while the first unwinds is ignored: it would cut the clean-up short
+    signal.signal(signal.SIGTERM, signal.SIG_IGN)
+    raise Terminated()
+
+
+def _handle_sigterm():
+    """Install :func:`_on_sigterm` (main thread only; not where SIGTERM is ignored); returns
+    the previous handler to restore, or None when nothing was installed."""
+    if threading.current_thread() is not threading.main_thread():
+        return None
+    previous = signal.getsignal(signal.SIGTERM)
+    if previous is signal.SIG_IGN:
+        return None
+    signal.signal(signal.SIGTERM, _on_sigterm)
+    return previous
+
+
 def main(argv: list[str] | None = None) -> int:
+    previous = _handle_sigterm()
+    try:
+        return _run(argv)
+    except Terminated:
+        print("peghole: terminated (SIGTERM)", file=sys.stderr, flush=True)
+        return EXIT_TERMINATED
+    except KeyboardInterrupt:
+        print("peghole: interrupted", file=sys.stderr, flush=True)
+        return EXIT_INTERRUPTED
+    finally:
+        if previous is not None:
+            signal.signal(signal.SIGTERM, previous)
+
+
+def _run(argv: list[str] | None) -> int:
     parser = build_parser()
     args = parser.parse_args(argv)
     if not hasattr(args, "func"):
@@ -72,9 +118,6 @@ def main(argv: list[str] | None = None) -> int:
     except REPORTED_ERRORS as exc:
         print(f"peghole: error: {_one_line(exc)}", file=sys.stderr)
         return 2
-    except KeyboardInterrupt:
-        print("peghole: interrupted", file=sys.stderr)
-        return 130
     except Exception:
         traceback.print_exc()
         print(f"peghole: internal error: {REPORT_BUG}", file=sys.stderr)

@@ -121,7 +121,50 @@ def check_out_dir(path: str | Path, what: str = "--out") -> Path:
         raise UserInputError(f"{what} {path}: cannot create the folder ({exc.strerror})") from None
     if not os.access(path, os.W_OK | os.X_OK):
         raise UserInputError(f"{what} {path}: the folder is not writable")
+    _probe_write(path, what)
     return path
+
+
+def _probe_write(folder: Path, what: str) -> None:
+    """Create and remove a small file in ``folder``: ``os.access`` says yes to root on a folder
+    without write bits and cannot see every read-only or full file system; a real write can."""
+    probe = folder / f".peghole_write_probe.{os.getpid()}"
+    try:
+        with open(probe, "wb") as f:
+            f.write(b"0")
+            f.flush()
+            os.fsync(f.fileno())
+    except OSError as exc:
+        raise UserInputError(
+            f"{what} {folder}: the folder is not writable ({exc.strerror or exc})"
+        ) from None
+    finally:
+        with contextlib.suppress(OSError):
+            probe.unlink()
+
+
+def free_bytes(path: str | Path) -> int:
+    """Bytes free for an unprivileged writer on the file system holding ``path`` (or the
+    nearest existing folder above it)."""
+    p = Path(path).absolute()
+    while not p.exists() and p != p.parent:
+        p = p.parent
+    st = os.statvfs(p)
+    return st.f_bavail * st.f_frsize
+
+
+def check_room(path: str | Path, need_bytes: int, what: str = "--out") -> None:
+    """Refuse (UserInputError, before any work) when the file system of ``path`` has less free
+    space than ``need_bytes`` (an estimate of what the command will write)."""
+    free = free_bytes(path)
+    if free < need_bytes:
+        raise UserInputError(
+            f"{what} {path}: {_mib(free)} free, the command writes about {_mib(need_bytes)}"
+        )
+
+
+def _mib(n: float) -> str:
+    return f"{n / 2**20:.1f} MiB" if n < 2**30 else f"{n / 2**30:.1f} GiB"
 
 
 def check_out_file(path: str | Path, what: str = "--out") -> Path:

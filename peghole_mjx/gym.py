@@ -17,6 +17,15 @@ for ``jam_time_s``), a non-finite world, or (MuJoCo Warp) a contact buffer overf
 the native env's, eq (4.4) unchanged: the time-limit step's reward includes the failure term
 ``r_failure``, since the thesis counts a time-out as a failed extraction.
 
+Actions are checked before they reach the env: real numbers (an integer or float dtype;
+complex, boolean, text or object arrays are refused, not cast) of the action space's shape, or
+:class:`~peghole_mjx.errors.UserInputError`. Values outside [-1, 1] are clipped by the env;
+a NaN action ends its episode like a non-finite world (``info["nan"]``).
+
+After an episode ends (single env): ``step`` raises :class:`~peghole_mjx.errors.UserInputError`
+until ``reset`` is called; the ended world is never simulated further, and its terminal
+reward is paid once.
+
 Autoreset (vector env): ``AutoresetMode.NEXT_STEP``, Gymnasium's default. After a world's
 episode ends, the next ``step`` ignores that world's action and returns the first observation
 of a new episode for it, with reward 0 and ``terminated = truncated = False``. Every new
@@ -40,6 +49,7 @@ import numpy as np
 from peghole_mjx import envs
 from peghole_mjx._optional import optional_import
 from peghole_mjx.errors import UserInputError
+from peghole_mjx.validation import check
 
 gymnasium = optional_import("gymnasium", "the Gymnasium adapter (peghole_mjx.gym)")
 from gymnasium import spaces  # noqa: E402
@@ -76,6 +86,21 @@ def _end_flags(env: envs.PegHoleEnv, state: envs.State) -> tuple[jax.Array, jax.
     return done & ~truncated, truncated
 
 
+def _checked_action(action, shape: tuple[int, ...], what: str) -> np.ndarray:
+    """``action`` as float32 after checking its dtype and shape (see the module docstring)."""
+    try:
+        a = np.asarray(action)
+    except ValueError as exc:  # ragged nested sequences
+        raise UserInputError(f"{what} must be an array of shape {shape}: {exc}") from None
+    if a.dtype.kind not in "fiu":
+        raise UserInputError(
+            f"{what} must hold real numbers (float32 in [-1, 1]), got dtype {a.dtype}"
+        )
+    if a.shape != shape:
+        raise UserInputError(f"{what} must have shape {shape}, got {a.shape}")
+    return a.astype(np.float32)
+
+
 def _np_info(state: envs.State) -> dict[str, np.ndarray]:
     return {k: np.array(state.metrics[k], dtype=np.float32) for k in INFO_KEYS}
 
@@ -93,10 +118,9 @@ class PegHoleVectorEnv(VectorEnv):
     def __init__(
         self, name: str = "RectExtract", num_envs: int = 1, config_overrides: dict | None = None
     ):
-        if int(num_envs) < 1:
-            raise UserInputError(f"num_envs must be >= 1, got {num_envs}")
+        num_envs = check("num_envs", num_envs)  # an integer >= 1 (true, 2.7 refused)
         self.env = envs.load(name, config_overrides=config_overrides)
-        self.num_envs = int(num_envs)
+        self.num_envs = num_envs
         self.single_observation_space, self.single_action_space = _spaces(self.env)
         self.observation_space = batch_space(self.single_observation_space, self.num_envs)
         self.action_space = batch_space(self.single_action_space, self.num_envs)
@@ -136,11 +160,7 @@ class PegHoleVectorEnv(VectorEnv):
         """One env step of every world (NEXT_STEP autoreset: see the module docstring)."""
         if self._state is None:
             raise UserInputError("call reset() before step()")
-        a = np.asarray(actions, dtype=np.float32)
-        if a.shape != self.action_space.shape:
-            raise UserInputError(
-                f"actions must have shape {self.action_space.shape}, got {a.shape}"
-            )
+        a = _checked_action(actions, self.action_space.shape, "actions")
         state, terminated, truncated = self._step_fn(self._state, jnp.asarray(a))
         reward = state.reward
         if self._autoreset.any():
@@ -178,6 +198,7 @@ class PegHoleGymEnv(gymnasium.Env):
         self._reset_fn = jax.jit(env.reset)
         self._step_fn = jax.jit(step)
         self._state: envs.State | None = None
+        self._ended: str | None = None  # "terminated" / "truncated" once the episode ended
 
     def reset(
         self, *, seed: int | None = None, options: dict[str, Any] | None = None
@@ -186,19 +207,27 @@ class PegHoleGymEnv(gymnasium.Env):
         super().reset(seed=seed, options=options)
         key = jax.random.PRNGKey(int(self.np_random.integers(2**31)))
         self._state = self._reset_fn(key)
+        self._ended = None
         return np.array(self._state.obs, dtype=np.float32), {}
 
     def step(self, action) -> tuple[np.ndarray, float, bool, bool, dict[str, float]]:
-        """One env step (``ctrl_dt``: ``n_substeps`` physics steps under the impedance law)."""
+        """One env step (``ctrl_dt``: ``n_substeps`` physics steps under the impedance law).
+
+        Raises :class:`UserInputError` after the episode ended (call ``reset``)."""
         if self._state is None:
             raise UserInputError("call reset() before step()")
-        a = np.asarray(action, dtype=np.float32)
-        if a.shape != self.action_space.shape:
-            raise UserInputError(f"action must have shape {self.action_space.shape}, got {a.shape}")
+        if self._ended is not None:
+            raise UserInputError(
+                f"the episode has ended ({self._ended}): call reset() before step()"
+            )
+        a = _checked_action(action, self.action_space.shape, "action")
         self._state, terminated, truncated = self._step_fn(self._state, jnp.asarray(a))
+        terminated, truncated = bool(terminated), bool(truncated)
+        if terminated or truncated:
+            self._ended = "terminated" if terminated else "truncated"
         info = {k: float(v) for k, v in _np_info(self._state).items()}
         obs = np.array(self._state.obs, dtype=np.float32)
-        return obs, float(self._state.reward), bool(terminated), bool(truncated), info
+        return obs, float(self._state.reward), terminated, truncated, info
 
 
 __all__ = ["INFO_KEYS", "PegHoleGymEnv", "PegHoleVectorEnv"]

@@ -21,6 +21,14 @@ from typing import Any
 #: the largest peg-hole dimension (mm) the iiwa 14 scene holds within the robot's reach: its
 #: inverse kinematics reaches the inserted pose of a 700 mm peg, not of an 800 mm one
 MAX_PART_MM = 700.0
+#: the smallest peg-hole dimension (mm): below it MuJoCo refuses the parts (mesh volumes and
+#: body inertias under its mjMINVAL; the rect peg's 0.5 mm edge capsules meet) and the
+#: contact model (0.2 mm solimp width, micrometre steady penetration) no longer resolves them
+MIN_PART_MM = 1.0
+#: why a size below MIN_PART_MM is refused (appended to the message)
+WHY_MIN_PART = "the smallest part MuJoCo builds and this contact model resolves"
+#: the largest extent of a user's CAD part (mm): the user scene's floor is 2 m across
+MAX_CAD_PART_MM = 2000.0
 
 
 @dataclass(frozen=True)
@@ -72,12 +80,100 @@ def _num(x: float | None) -> str:
 POSITIVE = Range(0.0, lo_open=True)
 SEED = Range(0, 2**32 - 1, integer=True)
 
+#: the KUKA LBR iiwa's Cartesian impedance mode: translational stiffness 0-5000 N/m,
+#: rotational 0-300 N m/rad, damping ratio 0.1-1 (the robot the thesis's gains are set on)
+IIWA_K_TRANS = Range(0.0, 5000.0, lo_open=True, why_hi="the iiwa's Cartesian impedance range")
+IIWA_K_ROT = Range(0.0, 300.0, lo_open=True, why_hi="the iiwa's Cartesian impedance range")
+_KIND = "the iiwa's Cartesian impedance range"
+#: the most a user may scale a measured contact maximum by in ``contact_cap`` (envs/config.py):
+#: above 4x every scene's allocated contacts are covered, and the cap no longer caps anything
+CONTACT_CAP_FACTOR = 4
+
+#: env config ranges (see RANGES); "why" notes say which limit a bound is
+ENV_RANGES: dict[str, Range] = {
+    f"env.{k}": v
+    for k, v in {
+        # time steps and run length: 10 Hz-1 kHz control (the iiwa's FRI runs at <= 1 kHz),
+        # 0.1-10 ms physics steps (MuJoCo's default is 2 ms)
+        "ctrl_dt": Range(0.001, 0.1),
+        "sim_dt": Range(1e-4, 0.01),
+        "episode_length": Range(1, 1_000_000, integer=True),
+        "mujoco_threads": Range(0, 1024, integer=True),  # 0 = every CPU
+        # None (the measured default) or 0 (no cap) or a cap; its upper end is also held within
+        # CONTACT_CAP_FACTOR x the scene's measured maximum (envs/config.py)
+        "contact_cap": Range(0, 10_000, integer=True),
+        "naconmax": Range(1, 4096, integer=True),
+        "njmax": Range(1, 65_536, integer=True),
+        # contact softness (0: MuJoCo's stiffest, 2 x sim_dt)
+        "contact.timeconst_s": Range(0.0, 1.0),
+        "contact.friction_timeconst_s": Range(0.0, 10.0),
+        # the action's scales (0 switches an action component off)
+        "action.max_step_offset_mm": Range(0.0, 10.0),
+        "action.max_speed_m_s": Range(0.0, 1.0, lo_open=True, why_lo="the pull would never move"),
+        "action.max_force_step_N": Range(0.0, 100.0),
+        "action.max_ff_xy_N": Range(0.0, 500.0),
+        # the impedance layer's wrench caps: at most 25x the thesis's (20/20/60 N, 3/3/1 N m)
+        "limits.max_force_N": Range(0.0, 500.0, lo_open=True),
+        "limits.max_torque_Nm": Range(0.0, 75.0, lo_open=True),
+        # gains (the iiwa's Cartesian impedance ranges)
+        "stiffness.k_xy_N_m": IIWA_K_TRANS,
+        "stiffness.k_xy_min_N_m": IIWA_K_TRANS,
+        "stiffness.k_xy_max_N_m": IIWA_K_TRANS,
+        "stiffness.k_z_N_m": IIWA_K_TRANS,
+        "stiffness.k_rot_Nm_rad": IIWA_K_ROT,
+        "stiffness.k_rot_min_Nm_rad": IIWA_K_ROT,
+        "stiffness.k_rot_max_Nm_rad": IIWA_K_ROT,
+        "stiffness.damping_ratio": Range(0.1, 1.0, why_lo=_KIND, why_hi=_KIND),
+        # L_C above the tip: within the peg (also held to the peg length, envs/config.py)
+        "stiffness.compliance_centre_mm": Range(0.0, MAX_PART_MM),
+        "stiffness.null_stiffness_Nm_rad": Range(0.0, 1000.0),
+        "stiffness.null_damping_Nms_rad": Range(0.0, 100.0),
+        # reward: weights >= 0 (a negative weight flips what a term rewards), scales > 0
+        "reward_config.w_d": Range(0.0, 1000.0),
+        "reward_config.w_f": Range(0.0, 1000.0),
+        "reward_config.w_stf": Range(0.0, 1000.0),
+        "reward_config.w_stf_rot": Range(0.0, 1000.0),
+        "reward_config.w_fz": Range(0.0, 1000.0),
+        "reward_config.r_success": Range(0.0, 1000.0),
+        "reward_config.r_failure": Range(-1000.0, 0.0),
+        "reward_config.force_scale_N": Range(0.0, 10_000.0, lo_open=True),
+        "reward_config.stiffness_scale_N_m": Range(0.0, 1e6, lo_open=True),
+        "reward_config.rot_stiffness_scale_Nm_rad": Range(0.0, 1e6, lo_open=True),
+        "reward_config.fz_scale_N": Range(0.0, 10_000.0, lo_open=True),
+        # episode ends: margins and thresholds > 0 (at 0 every step would end the episode)
+        "success_margin_mm": Range(0.0, MAX_PART_MM, lo_open=True),
+        "jam_force_N": Range(0.0, 10_000.0, lo_open=True),
+        "jam_time_s": Range(0.0, 3600.0, lo_open=True),
+        # observation scales > 0 (an observation is divided by them)
+        "obs.force_scale_N": Range(0.0, 10_000.0, lo_open=True),
+        "obs.torque_scale_Nm": Range(0.0, 10_000.0, lo_open=True),
+        "obs.k_xy_scale_N_m": Range(0.0, 1e6, lo_open=True),
+        "obs.k_rot_scale_Nm_rad": Range(0.0, 1e6, lo_open=True),
+        # episode-start randomisation: the hole within what the start pose's IK reaches (its
+        # few Newton steps from the keyframe put the tip within 0.01 mm of a hole moved 100 mm
+        # in x and y at any yaw, both scenes; at 150 mm it runs into a joint limit), tilts
+        # within 30 deg
+        "randomization.lateral_error_mm": Range(0.0, 50.0),
+        "randomization.angular_error_deg": Range(0.0, 30.0),
+        "randomization.hole_xy_mm": Range(0.0, 100.0, why_hi="the start pose's IK reach"),
+        "randomization.hole_yaw_deg": Range(0.0, 180.0),
+        "randomization.friction_scale": Range(0.0, 100.0),  # x the preset's mu, within friction
+        "randomization.stiffness_N_m": Range(0.0, 5000.0, why_hi=_KIND),
+    }.items()
+}
+
 #: name -> allowed range (names as the user sees them: option or config key)
 RANGES: dict[str, Range] = {
     # physics
     "friction": Range(0.0, 2.0),
     "mass_kg": Range(0.0, 100.0, lo_open=True),
-    "size_mm": Range(0.0, MAX_PART_MM, lo_open=True, why_hi="the limit of the robot's reach"),
+    "size_mm": Range(
+        MIN_PART_MM, MAX_PART_MM, why_lo=WHY_MIN_PART, why_hi="the limit of the robot's reach"
+    ),
+    # a user's CAD part (peghole models decompose): its largest extent after --units
+    "cad_part_mm": Range(
+        MIN_PART_MM, MAX_CAD_PART_MM, why_lo=WHY_MIN_PART, why_hi="the user scene's 2 m floor"
+    ),
     "clearance_mm": Range(0.0, 50.0, lo_open=True),
     "warn_fraction": Range(0.0, 1.0, lo_open=True),
     "depth_mm": POSITIVE,
@@ -90,6 +186,22 @@ RANGES: dict[str, Range] = {
     "max_ch_vertex": Range(4, 1024, integer=True, why_lo="a hull needs at least 4 vertices"),
     "max_convex_hull": Range(-1, 10_000, integer=True),  # -1: no cap; 0 is refused below
     "mcts_iterations": Range(1, 10_000, integer=True),
+    # the compliance experiments (experiment compliance | sweep | contact-check): grid values,
+    # world counts; the stiffnesses are the iiwa's Cartesian impedance ranges
+    "k_rot_Nm_rad": IIWA_K_ROT,
+    "k_lat_N_m": IIWA_K_TRANS,
+    "beta0_deg": Range(-5.0, 5.0, why_hi="the small-angle regime of the thesis"),
+    "theta0_deg": Range(-5.0, 5.0, why_hi="the small-angle regime of the thesis"),
+    "delta0_mm": Range(0.0, 10.0, why_hi="a positioning error: 5x the thesis's 2 mm"),
+    "speed_mm_s": Range(0.0, 100.0, lo_open=True, why_hi="the thesis's speed limit, 0.1 m/s"),
+    "repeats": Range(1, 1000, integer=True, why_hi="each L_C runs this many worlds"),
+    "sweep_repeats": Range(
+        2, 1000, integer=True, why_lo="intervals need two draws", why_hi="draws per cell"
+    ),
+    "grid_cells": Range(1, 10_000, integer=True, why_hi="the full grid has 480 cells"),
+    "sweep_worlds": Range(1, 1_000_000, integer=True, why_hi="40x the full grid's worlds"),
+    "batch_worlds": Range(1, 1 << 16, integer=True),
+    "worlds": Range(1, 1 << 16, integer=True),
     # runs
     "seed": SEED,
     "episodes": Range(1, 1_000_000, integer=True),
@@ -115,6 +227,11 @@ RANGES: dict[str, Range] = {
     # a policy's network (policy.json), checked before anything is allocated
     "observation_size": Range(1, 4096, integer=True),
     "action_size": Range(1, 64, integer=True),
+    # the env config (peghole_mjx/envs/config.py), one entry per numeric leaf, named "env." +
+    # its flat key; a tuple entry's range holds for each of its numbers. Checked when the env
+    # config is built, before any model is built or compiled (envs.config.check_config_values;
+    # tests/test_faults_envs.py checks that every numeric leaf has its range here)
+    **ENV_RANGES,
 }
 #: most hidden layers a network may have
 MAX_HIDDEN_LAYERS = 8
@@ -212,4 +329,27 @@ def loads(text: str) -> Any:
     def bare(name: str):
         raise ValueError(f"not JSON: bare {name}")
 
+    depth = _max_nesting(text)
+    if depth > MAX_JSON_DEPTH:
+        raise ValueError(f"JSON nested {depth} deep (at most {MAX_JSON_DEPTH} read)")
     return json.loads(text, parse_constant=bare)
+
+
+#: deepest nesting of JSON read back (peghole's own files nest fewer than 10 levels); deeper
+#: input would exhaust Python's recursion, so it is refused before parsing
+MAX_JSON_DEPTH = 64
+
+
+def _max_nesting(text: str) -> int:
+    """Deepest ``[``/``{`` nesting of ``text``, outside strings (a linear scan, no recursion)."""
+    import re
+
+    depth = deepest = 0
+    for tok in re.finditer(r'"(?:[^"\\]|\\.)*"|[\[\]{}]', text):
+        t = tok.group()
+        if t in "[{":
+            depth += 1
+            deepest = max(deepest, depth)
+        elif t in "]}":
+            depth -= 1
+    return deepest

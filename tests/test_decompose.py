@@ -149,7 +149,7 @@ def _cli(*args: str) -> subprocess.CompletedProcess:
                 "--length",
                 "150",
             ],
-            "argument --peg: must be a finite number in (0, 700], got 0.0",
+            "argument --peg: must be a finite number in [1, 700], got 0.0",
         ),
         (["models", "build", "--geometry", "dual", "--hole-radius", "6.1"], "needs --peg-radius"),
         (["models", "decompose", "missing_peg.stl", "missing_hole.stl"], "mesh file not found"),

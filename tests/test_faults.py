@@ -601,6 +601,9 @@ def test_evaluate_prints_the_result_before_a_failed_write(
     out = tmp_path / "ev.json"
     out.write_text("old")
     with monkeypatch.context() as m:
+        # the disk fills during the evaluation: the check before it (a real write probe, which
+        # a disk already full refuses: test_faults_policies.py) still passed
+        m.setattr(fileio, "_probe_write", lambda folder, what: None)
         full_disk(m)
         rc, stdout, err = peghole(["evaluate", "rect", "--json", "--out", out], capsys)
     assert rc == 2

@@ -227,4 +227,4 @@ def test_slice_claims_share_a_sweep_folder_between_processes(tmp_path):
     claim.write_text("1")  # held by a live process (init)
     assert not sweep._claim(part)
     claim.write_text("4194303")  # held by a process that is gone: taken over
-    assert sweep._claim(part) and claim.read_text() == str(os.getpid())
+    assert sweep._claim(part) and json.loads(claim.read_text())["pid"] == os.getpid()

@@ -10,6 +10,11 @@ from peghole_mjx import fileio
 from peghole_mjx.errors import UserInputError
 from peghole_mjx.validation import arg, dumps, finite_float
 
+#: upper estimates of what ``analyze`` writes, checked against the free disk before the work:
+#: a figure family's CSV and PNG (the largest, 3.28-3.42, writes 0.55 MB), jamming.png + .json
+FIGURE_FAMILY_BYTES = 2 << 20
+JAMMING_BYTES = 2 << 20
+
 
 def add_parser(subparsers) -> None:
     p = subparsers.add_parser(
@@ -68,6 +73,7 @@ def _figure(args) -> int:
 
     ids = figures.resolve(args.id)
     fileio.check_out_dir(args.out)
+    fileio.check_room(args.out, len(ids) * FIGURE_FAMILY_BYTES + (1 << 20))
     t0 = time.perf_counter()
     for fid in ids:
         csv_path, png_path = figures.write_family(fid, args.out)
@@ -119,13 +125,21 @@ def _jamming(args) -> int:
         label = f"rect {args.preset or rect.FIGURE_PRESET}, case {args.case}"
     if not hasattr(spec, "kind") or args.geometry != spec.kind:
         raise UserInputError(f"preset {args.preset!r} is not a {args.geometry} peg-hole")
-    if args.out:
-        fileio.check_out_dir(args.out)
     r = abs(float(plus.w_peg)) / 2
     two_c = float(plus.two_c)
     mu = spec.friction if args.mu is None else args.mu
     if not 0 < args.depth <= spec.length_mm:
         raise UserInputError(f"--depth must be in (0, {spec.length_mm:g}] mm")
+    s_min = jamming.two_point_min_depth_mm(r, two_c)
+    if args.depth <= s_min:
+        raise UserInputError(
+            f"--depth {args.depth:g} mm is not deeper than {s_min:.4g} mm, the shallowest "
+            f"depth at which this peg ({2 * r:g} mm wide, clearance {two_c:.3g} mm) can be in "
+            "two-point contact: no jamming diagram there"
+        )
+    if args.out:
+        fileio.check_out_dir(args.out)
+        fileio.check_room(args.out, JAMMING_BYTES)
     d = jamming.diagram(args.depth, r, mu)
     out = {
         "geometry": label,

@@ -69,6 +69,13 @@ def extracts(F_x_N, F_z_N, M_Nmm, depth_mm, half_width_mm, mu) -> np.ndarray:
     return (np.abs(f) < 1 / d.mu) & (m < d.lam + line) & (m > -d.lam + line)
 
 
+def two_point_min_depth_mm(half_width_mm: float, two_c_mm: float) -> float:
+    """The shallowest depth (mm) at which a peg of width ``2 r`` in a hole ``2 c`` wider can
+    touch both walls: its diagonal must span the hole, ``sqrt((2r + 2c)^2 - (2r)^2)``."""
+    wp, wh = 2 * half_width_mm, 2 * half_width_mm + two_c_mm
+    return float(np.sqrt(max(wh * wh - wp * wp, 0.0)))
+
+
 def _edges(
     depth_mm: float, half_width_mm: float, mu: float, two_c_mm: float, configuration: str
 ) -> np.ndarray:
@@ -76,6 +83,11 @@ def _edges(
     friction cones in the exact two-point pose."""
     r, s = half_width_mm, depth_mm
     wp, wh = 2 * r, 2 * r + two_c_mm
+    s_min = two_point_min_depth_mm(r, two_c_mm)
+    if not s > s_min:
+        raise common.UserInputError(
+            f"depth {s:g} mm is not deeper than {s_min:.4g} mm: no two-point contact there"
+        )
     t = np.arctan2(s, wp) - np.arccos(wh / np.hypot(wp, s))  # exact two-point tilt
     ct, st = np.cos(t), np.sin(t)
     n = np.array([ct, st])

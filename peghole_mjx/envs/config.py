@@ -5,10 +5,17 @@ when the env is built: the compiled scene of ``preset``, the peg length, the sub
 The defaults are copied from their one source: the robot's limits and gains
 (:mod:`peghole_mjx.control.limits`), the reward weights (:data:`~peghole_mjx.envs.reward.
 REWARD_WEIGHTS`), the simulator step (:class:`~peghole_mjx.geometry.mjcf.SimOptions`).
+
+Every config is checked when it is built (:func:`apply_overrides`), before any model is built
+or compiled: each entry's type (switches, text, numbers), each number against its range in
+:data:`peghole_mjx.validation.RANGES` (``"env." + key``, the one table of allowed ranges), and
+the relations between entries (time steps, bounds, the contact cap). A refusal is one
+:class:`~peghole_mjx.errors.UserInputError` line naming the entry.
 """
 
 from __future__ import annotations
 
+import copy
 import dataclasses
 import json
 import math
@@ -159,11 +166,36 @@ def env_spec(config: config_dict.ConfigDict) -> PegHoleSpec:
             f"env config geometry: {', '.join(unknown)} not fields of {type(spec).__name__} "
             f"(it has: {', '.join(sorted(fields))})"
         )
+    for key, value in changes.items():
+        problem = _geometry_value_problem(getattr(spec, key), value)
+        if problem:
+            raise UserInputError(f"env config geometry: {key} {problem}, got {value!r}")
     changes = {k: tuple(v) if isinstance(v, list) else v for k, v in changes.items()}
     try:
         return with_changes(spec, **changes)
     except (InfeasibleGeometryError, TypeError) as exc:
         raise UserInputError(f"env config geometry {text}: {exc}") from None
+
+
+def _is_number(v) -> bool:
+    return isinstance(v, int | float) and not isinstance(v, bool)
+
+
+def _geometry_value_problem(preset_value, value) -> str | None:
+    """What is wrong with the type of a ``geometry`` change of a spec field (its range is
+    checked by the spec itself), or None: a number (no true/false), a list of as many numbers
+    for a tuple field (the dual radii), null only where the preset's value is null (the
+    default depth)."""
+    if isinstance(preset_value, tuple):
+        ok = isinstance(value, list | tuple) and len(value) == len(preset_value)
+        if not (ok and all(_is_number(v) for v in value)):
+            return f"must be a list of {len(preset_value)} numbers"
+        return None
+    if value is None and preset_value is None:
+        return None
+    if not _is_number(value):
+        return "must be a number" + (" or null" if preset_value is None else "")
+    return None
 
 
 def geometry_text(changes: dict | str) -> str:
@@ -193,12 +225,25 @@ def sim_options(config: config_dict.ConfigDict) -> SimOptions:
 def apply_overrides(
     config: config_dict.ConfigDict, overrides: dict | None
 ) -> config_dict.ConfigDict:
-    """A checked, locked copy of ``config`` with flat ``a.b.c`` ``overrides`` applied."""
-    config = config_dict.ConfigDict(config)
+    """A checked, locked copy of ``config`` with flat ``a.b.c`` ``overrides`` applied
+    (``config`` itself is left as it is: a ``ConfigDict`` copy would share its groups)."""
+    config = copy.deepcopy(config_dict.ConfigDict(config))
+    if overrides is not None and not isinstance(overrides, dict):
+        raise UserInputError(
+            f"env config overrides must be a mapping of flat keys to values, got {overrides!r}"
+        )
     if overrides:
         check_override_keys(config, overrides)
         if isinstance(overrides.get("geometry"), dict):  # --set env.geometry={...} parses to a dict
             overrides = {**overrides, "geometry": geometry_text(overrides["geometry"])}
+        overrides = {k: _as_entry_type(_entry(config, k), v) for k, v in overrides.items()}
+        for key, value in overrides.items():
+            # the type, named by the full key (ConfigDict would store true as 1.0 in a number
+            # entry, accept any type in an entry whose default is None, and name only the
+            # last part of the key)
+            want = _type_problem(key, _entry(config, key), value)
+            if want:
+                raise UserInputError(f"env config {key} must be {want}, got {value!r}")
         try:
             config.update_from_flattened_dict(overrides)
         except (TypeError, ValueError) as exc:
@@ -221,11 +266,117 @@ def check_override_keys(config: config_dict.ConfigDict, overrides: dict) -> None
                     + (f" (it has: {', '.join(have)})" if have else "")
                 )
             node, path = node[part], [*path, part]
+        if isinstance(node, config_dict.ConfigDict):
+            first = sorted(node.keys())[0]
+            raise UserInputError(
+                f"env config {key} is a group of entries ({', '.join(sorted(node.keys()))}): "
+                f"set one of them, e.g. {key}.{first}=..."
+            )
+
+
+def _entry(config: config_dict.ConfigDict, key: str):
+    """The value of flat key ``a.b.c`` (an existing entry)."""
+    node = config
+    for part in key.split("."):
+        node = node[part]
+    return node
+
+
+def _as_entry_type(current, value):
+    """``value`` in the form of the entry it overrides: a list as a tuple for a tuple entry,
+    a whole float (``1e3`` on the command line) as an int for an integer entry."""
+    if isinstance(value, list) and isinstance(current, tuple):
+        return tuple(value)
+    if (
+        isinstance(current, int)
+        and not isinstance(current, bool)
+        and isinstance(value, float)
+        and value.is_integer()
+    ):
+        return int(value)
+    return value
+
+
+def _type_problem(key: str, current, value) -> str | None:
+    """What type the entry ``key`` (now ``current``) needs if ``value`` lacks it, or None."""
+    if key in FLAGS:
+        return None if isinstance(value, bool) else "true or false"
+    if key in TEXT:
+        ok = isinstance(value, str) or (value is None and key in OPTIONAL)
+        return None if ok else "text" + (" or null" if key in OPTIONAL else "")
+    if key in TUPLES:
+        ok = isinstance(value, tuple) and len(value) == TUPLES[key]
+        return None if ok else f"a list of {TUPLES[key]} numbers"
+    if value is None and key in OPTIONAL:
+        return None
+    if isinstance(value, bool) or not isinstance(value, int | float):
+        return "a number (not true or false)" if isinstance(value, bool) else "a number"
+    if isinstance(current, int) and not isinstance(current, bool) and not isinstance(value, int):
+        return "an integer"
+    return None
+
+
+def leaves(config: config_dict.ConfigDict, prefix: str = ""):
+    """``(flat key, value)`` of every entry of an env config (groups walked, not returned)."""
+    for k, v in config.items():
+        if isinstance(v, config_dict.ConfigDict):
+            yield from leaves(v, f"{prefix}{k}.")
+        else:
+            yield prefix + k, v
+
+
+#: entries that are switches (true / false)
+FLAGS = frozenset(
+    {
+        "compliance_strategy",
+        "compliance_rotation",
+        "learn_compliance_centre",
+        "obs.torques",
+        "obs.stiffness",
+        "obs.prev_action",
+        "obs.commands",
+    }
+)
+#: entries that are text (``representation``: or None, the preset's default); their values are
+#: checked where they are read (the preset, geometry, engine, impl and representation names)
+TEXT = frozenset({"preset", "geometry", "engine", "impl", "representation"})
+#: entries that are None for "the default" (else a number in range)
+OPTIONAL = frozenset({"contact_cap", "representation"})
+#: entries that hold several numbers (each within the entry's range): how many
+TUPLES = {
+    "limits.max_force_N": 3,
+    "limits.max_torque_Nm": 3,
+    "randomization.friction_scale": 2,
+    "randomization.stiffness_N_m": 2,
+}
+
+
+def _range_problem(rng, value) -> str | None:
+    """What is wrong with ``value`` for ``rng``, naming the bound it crosses first."""
+    from peghole_mjx.validation import _num
+
+    problem = rng.problem(value)
+    if problem is None or isinstance(value, bool) or not isinstance(value, int | float):
+        return problem
+    if not math.isfinite(value) or (rng.integer and value != int(value)):
+        return problem
+    if rng.lo is not None and (value <= rng.lo if rng.lo_open else value < rng.lo):
+        bound, why = f"{'>' if rng.lo_open else '>='} {_num(rng.lo)}", rng.why_lo
+    else:
+        bound, why = f"{'<' if rng.hi_open else '<='} {_num(rng.hi)}", rng.why_hi
+    kind = "an integer " if rng.integer else ""
+    allowed = rng.describe().split(" in ", 1)[-1]  # the interval, e.g. [0, 1024]
+    why = f"; {why}" if why else ""
+    return f"must be {kind}{bound} (in {allowed}{why}), got {value!r}"
 
 
 def check_config_values(config: config_dict.ConfigDict) -> None:
-    """Every number of the env config is finite, and the ones a user sets are in range."""
-    from peghole_mjx.validation import RANGES, check_finite_tree
+    """Every entry of the env config has its type, and every number is finite and in its
+    range (:data:`peghole_mjx.validation.RANGES`, ``env.<key>``): checked before any model is
+    built or compiled, naming the entry."""
+    from peghole_mjx.geometry.mjcf import CONTACT_CAPS, contact_cap_for
+    from peghole_mjx.geometry.parts import resolve_representation
+    from peghole_mjx.validation import CONTACT_CAP_FACTOR, RANGES, check_finite_tree
 
     check_finite_tree(config.to_dict(), "env config")
 
@@ -233,38 +384,66 @@ def check_config_values(config: config_dict.ConfigDict) -> None:
         if not cond:
             raise UserInputError(f"env config: {what}")
 
-    need(config.ctrl_dt > 0 and config.sim_dt > 0, "ctrl_dt and sim_dt must be > 0")
+    for key, value in leaves(config):
+        if key in OPTIONAL and value is None:
+            continue
+        if key in TEXT:
+            need(isinstance(value, str), f"{key} must be text, got {value!r}")
+        elif key in FLAGS:
+            need(isinstance(value, bool), f"{key} must be true or false, got {value!r}")
+        elif f"env.{key}" not in RANGES:
+            raise UserInputError(f"env config: {key} is not an entry of the env config")
+        else:
+            rng = RANGES[f"env.{key}"]
+            if key in TUPLES:
+                n = TUPLES[key]
+                need(
+                    isinstance(value, tuple | list) and len(value) == n,
+                    f"{key} must be {n} numbers, got {value!r}",
+                )
+                for v in value:
+                    problem = _range_problem(rng, v)
+                    need(problem is None, f"{key} = {tuple(value)!r}: each number {problem}")
+            else:
+                problem = _range_problem(rng, value)
+                need(problem is None, f"{key} {problem}")
+
+    n_sub = config.ctrl_dt / config.sim_dt
     need(
-        isinstance(config.episode_length, int) and config.episode_length >= 1,
-        f"episode_length must be an integer >= 1, got {config.episode_length!r}",
+        abs(n_sub - round(n_sub)) <= 1e-6,
+        f"ctrl_dt ({config.ctrl_dt:g} s) must be a whole multiple of sim_dt ({config.sim_dt:g} s)",
     )
     r = config.randomization
-    for key in ("lateral_error_mm", "angular_error_deg", "hole_xy_mm", "hole_yaw_deg"):
-        need(r[key] >= 0, f"randomization.{key} must be >= 0, got {r[key]!r}")
     for key in ("friction_scale", "stiffness_N_m"):
-        pair = tuple(r[key])
-        need(
-            len(pair) == 2 and 0 <= pair[0] <= pair[1],
-            f"randomization.{key} must be a range (lo, hi) with 0 <= lo <= hi, got {pair!r}",
-        )
-    mu = env_spec(config).friction * r.friction_scale[1]
+        lo, hi = r[key]
+        need(lo <= hi, f"randomization.{key} must be a range (lo, hi), lo <= hi, got {r[key]!r}")
+    spec = env_spec(config)
+    mu = spec.friction * r.friction_scale[1]
     fr = RANGES["friction"]
     need(
         fr.problem(mu) is None,
         f"randomization.friction_scale gives friction {mu:g}, outside [0, {fr.hi:g}]",
     )
-    a = config.action
-    for key in ("max_step_offset_mm", "max_speed_m_s", "max_force_step_N", "max_ff_xy_N"):
-        need(a[key] >= 0, f"action.{key} must be >= 0, got {a[key]!r}")
     s = config.stiffness
     need(
-        0 < s.k_xy_min_N_m <= s.k_xy_max_N_m and 0 < s.k_rot_min_Nm_rad <= s.k_rot_max_Nm_rad,
-        "stiffness bounds must satisfy 0 < min <= max",
+        s.k_xy_min_N_m <= s.k_xy_max_N_m and s.k_rot_min_Nm_rad <= s.k_rot_max_Nm_rad,
+        "stiffness bounds must satisfy min <= max (k_xy_min_N_m <= k_xy_max_N_m, "
+        "k_rot_min_Nm_rad <= k_rot_max_Nm_rad)",
     )
-    lim = config.limits
-    for key in ("max_force_N", "max_torque_Nm"):
-        caps = tuple(lim[key])
-        need(
-            len(caps) == 3 and all(v >= 0 for v in caps),
-            f"limits.{key} must be three numbers >= 0, got {caps!r}",
-        )
+    need(
+        s.compliance_centre_mm <= spec.length_mm,
+        f"stiffness.compliance_centre_mm ({s.compliance_centre_mm:g}) must lie within the peg "
+        f"(<= its length, {spec.length_mm:g} mm)",
+    )
+    if config.contact_cap is not None:
+        rep = resolve_representation(spec, config.representation, impl=config.impl)
+        contact_cap_for(spec, rep, int(config.contact_cap))  # below the measured maximum
+        entry = CONTACT_CAPS.get((spec.kind, rep))
+        if entry is not None:
+            most = CONTACT_CAP_FACTOR * entry.measured_max
+            need(
+                config.contact_cap <= most,
+                f"contact_cap must be 0 (no cap) or at most {most} ({CONTACT_CAP_FACTOR} x the "
+                f"measured maximum of {entry.measured_max} active contacts of the {spec.kind} "
+                f"scene, {rep}), got {config.contact_cap!r}",
+            )

@@ -24,6 +24,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
+from peghole_mjx import fileio, memory
 from peghole_mjx.envs.extraction import PegHoleEnv
 from peghole_mjx.envs.metrics import (
     EPISODE_RECORD,
@@ -160,6 +161,7 @@ def rollout(
     gamma: float = 0.99,
     batch: int | None = None,
     parts_dir: str | Path | None = None,
+    refuse_all_nan: bool = True,
 ) -> RolloutResult:
     """Run ``episodes`` episodes until each is done (success or failure).
 
@@ -167,6 +169,10 @@ def rollout(
     meet the same randomised episodes, and the first n of a longer run are the n of a shorter
     one (keys split from one seed are prefix-stable with JAX's partitionable threefry). With
     ``params``, ``policy`` is called as ``policy(params, obs, rng)``.
+
+    A rollout in which every episode ended in a non-finite (NaN) world has no result to report:
+    with ``refuse_all_nan`` (the default) it raises :class:`UserInputError` naming the likely
+    cause (:func:`check_not_all_nan`).
 
     ``batch``: run at most this many worlds at once (slices of the same start states; one
     compiled shape). ``parts_dir``: save each finished slice there and load the slices already
@@ -177,6 +183,8 @@ def rollout(
     if not jax.config.jax_threefry_partitionable:
         raise RuntimeError("rollout needs jax_threefry_partitionable=True (prefix-stable keys)")
     batch = episodes if batch is None else max(1, min(batch, episodes))
+    # before anything is allocated or compiled: the worlds of one batch must fit in memory
+    memory.check_worlds(env, batch, "a rollout batch", "run fewer episodes at once (--batch)")
     rng, reset_keys = episode_keys(seed, episodes)
     parts = Path(parts_dir) if parts_dir is not None else None
     if parts is not None:
@@ -207,18 +215,70 @@ def rollout(
         rec = {k: v[:n] for k, v in rec.items()}
         records.append(rec)
         compile_s, run_s, env_steps = compile_s + c_s, run_s + r_s, env_steps + steps
-        if saved is not None:
-            tmp = saved.with_suffix(".tmp.npz")
-            np.savez(tmp, **rec)
-            tmp.replace(saved)  # atomic: a killed run leaves no half-written slice
+        if saved is not None:  # atomic and flushed: a kill or power cut leaves no torn slice
+            fileio.write_bytes_with(saved, lambda f, rec=rec: np.savez(f, **rec))
     per_episode = {k: np.concatenate([r[k] for r in records]) for k in records[0]}
-    return RolloutResult(
+    result = RolloutResult(
         per_episode=per_episode,
         compile_s=compile_s,
         run_s=run_s,
         env_steps=env_steps,
         physics_steps=env_steps * env.n_substeps,
     )
+    if refuse_all_nan:
+        check_not_all_nan(result, env, params)
+    return result
+
+
+def check_not_all_nan(result: RolloutResult, env: PegHoleEnv, params: Any = None) -> None:
+    """:class:`UserInputError` when every episode of ``result`` ended in a non-finite world
+    (a NaN action or a diverged simulation): a failure with its likely cause, not a result.
+
+    The cause named: policy ``params`` that are not finite, else the entries of the env config
+    that differ from the env's defaults, else the policy's actions (a NaN action ends its
+    episode as a NaN world)."""
+    from peghole_mjx.errors import UserInputError
+
+    nan = np.asarray(result.per_episode["nan"]) > 0
+    if nan.size == 0 or not nan.all():
+        return
+    leaves = jax.tree.leaves(params) if params is not None else []
+    if any(not np.isfinite(np.asarray(x, np.float64)).all() for x in leaves):
+        cause = "the policy's parameters are not finite (NaN or inf)"
+    else:
+        changed = _config_changes(env)
+        if changed:
+            shown = ", ".join(f"{k}={v!r}" for k, v in changed[:6])
+            more = f" and {len(changed) - 6} more" if len(changed) > 6 else ""
+            cause = (
+                f"the simulation diverged under the env config's changes from the "
+                f"{env.env_name} defaults ({shown}{more})"
+            )
+        else:
+            cause = (
+                f"the policy's actions (a NaN action ends its episode) or the physics at the "
+                f"{env.env_name} defaults"
+            )
+    raise UserInputError(
+        f"all {nan.size} episodes ended in a non-finite (NaN) world: no result to report; "
+        f"likely cause: {cause}"
+    )
+
+
+def _config_changes(env: PegHoleEnv) -> list[tuple[str, Any]]:
+    """``(flat key, value)`` of the env config's entries that differ from its env's defaults
+    (the engine choice left out: it is set per machine)."""
+    from peghole_mjx import envs
+    from peghole_mjx.envs.config import leaves
+
+    if env.env_name not in envs.ALL_ENVS:
+        return []
+    default = dict(leaves(envs.get_default_config(env.env_name)))
+    return [
+        (k, v)
+        for k, v in leaves(env.config)
+        if k not in ("engine", "impl", "mujoco_threads") and default.get(k) != v
+    ]
 
 
 def _rollout_slice(env, policy, reset_keys, rng, chunk, params, gamma, progress, desc):

@@ -6,7 +6,8 @@ import argparse
 import dataclasses
 from pathlib import Path
 
-from peghole_mjx.errors import UserInputError
+from peghole_mjx.errors import CorruptFileError, UserInputError
+from peghole_mjx.validation import arg
 
 
 def add_parser(subparsers) -> None:
@@ -15,9 +16,11 @@ def add_parser(subparsers) -> None:
     c = sub.add_parser("compliance", help="extraction with L_C at tip/centre/top (Sec 2.5, 3.4)")
     c.add_argument("--geometry", required=True, help="rect or dual")
     c.add_argument("--quick", action="store_true", help="one preset (rect-2 / dual-2), 2 repeats")
-    c.add_argument("--repeats", type=int, default=None, help="repeats per L_C (default 6)")
+    c.add_argument(
+        "--repeats", type=arg("repeats"), default=None, help="repeats per L_C (default 6)"
+    )
     c.add_argument("--presets", default=None, help="comma-separated preset names")
-    c.add_argument("--seed", type=int, default=0)
+    c.add_argument("--seed", type=arg("seed"), default=0)
     c.add_argument("--out", required=True, type=Path, help="output directory")
     c.set_defaults(func=run)
 
@@ -42,9 +45,13 @@ def add_parser(subparsers) -> None:
     )
     w.add_argument("--delta0", default=None, help="delta0 values, mm")
     w.add_argument("--mu", default=None, help="friction values")
-    w.add_argument("--repeats", type=int, default=None, help="draws per cell and L_C (16)")
-    w.add_argument("--seed", type=int, default=0)
-    w.add_argument("--batch-worlds", type=int, default=96, help="worlds per compiled batch")
+    w.add_argument(
+        "--repeats", type=arg("sweep_repeats"), default=None, help="draws per cell and L_C (16)"
+    )
+    w.add_argument("--seed", type=arg("seed"), default=0)
+    w.add_argument(
+        "--batch-worlds", type=arg("batch_worlds"), default=96, help="worlds per compiled batch"
+    )
     w.add_argument(
         "--representation",
         default=None,
@@ -89,8 +96,8 @@ def add_parser(subparsers) -> None:
     k.add_argument(
         "--variant", action="append", default=None, help="variant name (repeatable) or all"
     )
-    k.add_argument("--worlds", type=int, default=8)
-    k.add_argument("--seed", type=int, default=0)
+    k.add_argument("--worlds", type=arg("worlds"), default=8)
+    k.add_argument("--seed", type=arg("seed"), default=0)
     k.add_argument("--out", type=Path, default=None, help="JSON file to write")
     k.add_argument("--json", action="store_true", help="print the JSON instead of a table")
     k.add_argument(
@@ -120,10 +127,9 @@ def run(args: argparse.Namespace) -> int:
         bad = [n for n in names if n not in PRESETS or PRESETS[n].kind != args.geometry]
         if bad:
             raise UserInputError(f"unknown {args.geometry} preset(s): {', '.join(bad)}")
+        _no_duplicates("--presets", names)
         cfg = dataclasses.replace(cfg, presets=names)
     if args.repeats is not None:
-        if args.repeats < 1:
-            raise UserInputError("--repeats must be >= 1")
         cfg = dataclasses.replace(cfg, repeats=args.repeats)
     summary, files = run_experiment(cfg, args.out)
     for f in files:
@@ -181,8 +187,8 @@ def run_sweep(args: argparse.Namespace) -> int:
 
     if args.representation is not None:
         resolve_representation(PRESETS[grid.presets[0]], args.representation, impl="jax")
-    if args.speed_mm_s is not None and not args.speed_mm_s > 0:
-        raise UserInputError(f"--speed-mm-s must be > 0, got {args.speed_mm_s}")
+    if args.speed_mm_s is not None:
+        sweep.check_value("speed_mm_s", args.speed_mm_s, "--speed-mm-s", "mm/s")
     exp = ExperimentConfig(
         representation=args.representation,
         compensate_joint_damping=args.compensate_joint_damping,
@@ -204,10 +210,67 @@ def run_sweep(args: argparse.Namespace) -> int:
     return 0
 
 
+def _no_duplicates(option: str, names) -> None:
+    seen = set()
+    for n in names:
+        if n in seen:
+            raise UserInputError(f"{option} lists {n} twice")
+        seen.add(n)
+
+
+def read_contact_runs(path: Path) -> list[dict]:
+    """The runs of an existing contact-check JSON (for ``--append``), schema-checked before any
+    simulation: an object whose ``runs`` is a list of runs, each with a preset, a variant
+    name, a summary and its worlds. Anything else is refused in one line naming the file."""
+    from peghole_mjx.validation import loads
+
+    def bad(why: str):
+        return CorruptFileError(
+            f"--append: {path} is not a contact-check JSON ({why}); give another --out or "
+            "move that file away"
+        )
+
+    try:
+        doc = loads(path.read_text())
+    except UnicodeDecodeError:
+        raise bad("not text") from None
+    except ValueError as exc:
+        raise bad(f"not valid JSON: {exc}") from None
+    if not isinstance(doc, dict):
+        raise bad(f"a JSON {type(doc).__name__}, not an object")
+    runs = doc.get("runs")
+    if not isinstance(runs, list):
+        raise bad('no "runs" list' if runs is None else f'"runs" is a {type(runs).__name__}')
+    for i, r in enumerate(runs):
+        ok = (
+            isinstance(r, dict)
+            and isinstance(r.get("preset"), str)
+            and isinstance(r.get("variant"), dict)
+            and isinstance(r["variant"].get("name"), str)
+            and isinstance(r.get("precision", "float32"), str)
+            and isinstance(r.get("summary"), dict)
+            and isinstance(r.get("worlds"), list)
+        )
+        if not ok:
+            raise bad(f"runs[{i}] lacks its preset, variant name, summary or worlds")
+    return runs
+
+
+def contact_output_bytes(n_runs: int, worlds: int, old_bytes: int = 0) -> int:
+    """An upper estimate of the contact-check JSON, bytes (about 0.5 kB per world)."""
+    return old_bytes + 64 * 2**10 + n_runs * (4 * 2**10 + worlds * 2**10)
+
+
 def run_contact_check(args: argparse.Namespace) -> int:
     import json
+    import sys
 
+    import numpy as np
+
+    from peghole_mjx import fileio
+    from peghole_mjx.experiments import compliance as cx
     from peghole_mjx.experiments import contact_check as cc
+    from peghole_mjx.experiments import outputs
     from peghole_mjx.experiments.sweep import clean_json
     from peghole_mjx.provenance import provenance
 
@@ -224,16 +287,22 @@ def run_contact_check(args: argparse.Namespace) -> int:
         raise UserInputError(
             f"unknown variant(s) {', '.join(unknown)}; known: {', '.join(cc.VARIANTS)}"
         )
+    _no_duplicates("--preset", presets)
+    _no_duplicates("--variant", names)
+    for p in presets:  # all of them before the first simulation
+        cc.check_preset(p)
     if args.out is not None and args.out.is_dir():
         raise UserInputError(f"--out {args.out} is a folder; give a JSON file path")
     if args.append and args.out is None:
         raise UserInputError("--append needs --out")
     old = []
-    if args.append and args.out.exists():
-        try:
-            old = json.loads(args.out.read_text())["runs"]
-        except (ValueError, KeyError) as exc:
-            raise UserInputError(f"--out {args.out} is not a contact-check JSON: {exc}") from None
+    if args.out is not None:
+        fileio.check_out_file(args.out)
+        if args.append and args.out.exists():
+            old = read_contact_runs(args.out)
+        old_bytes = args.out.stat().st_size if args.out.exists() else 0
+        need = contact_output_bytes(len(presets) * len(names), args.worlds, old_bytes)
+        fileio.check_room(args.out.parent, need, "--out")
     runs = []
     for p in presets:
         for n in names:
@@ -241,6 +310,18 @@ def run_contact_check(args: argparse.Namespace) -> int:
             runs.append(r)
             if not args.json:
                 print(cc.table_row(r), flush=True)
+    cx.check_not_all_nan(
+        np.array([w["nan"] for r in runs for w in r["worlds"]], bool),
+        "the contact check",
+        "the variants' contact settings (step size, contact time constant) or float32 "
+        "rounding: try --x64",
+    )
+    for r in runs:
+        if r["summary"].get("failure"):
+            print(
+                f"warning: {r['preset']} {r['variant']['name']}: {r['summary']['failure']}",
+                file=sys.stderr,
+            )
     new_keys = {(r["preset"], r["variant"]["name"], r["precision"]) for r in runs}
     kept = [
         r
@@ -259,10 +340,7 @@ def run_contact_check(args: argparse.Namespace) -> int:
     if args.json:
         print(json.dumps(doc, indent=1))
     if args.out is not None:
-        args.out.parent.mkdir(parents=True, exist_ok=True)
-        tmp = args.out.with_suffix(args.out.suffix + ".tmp")
-        tmp.write_text(json.dumps(doc, indent=1))
-        tmp.replace(args.out)
+        outputs.write_json(args.out, doc)
         if not args.json:
             print(args.out)
     return 0

@@ -610,6 +610,42 @@ def analytic_two_point_hook(
     }
 
 
+class DivergedError(UserInputError):
+    """Every world of a run went NaN: reported as a failure with its likely cause (exit 2),
+    not written as a result."""
+
+
+def nan_cause(cfg: ExperimentConfig, x64: bool = False, k_rot_min: float | None = None) -> str:
+    """The likely cause of worlds that went NaN, from the settings that are known to do it."""
+    k_rot = cfg.rotational_stiffness_Nm_rad if k_rot_min is None else k_rot_min
+    if not cfg.fix_cone_hessian:
+        return (
+            "MJX's elliptic-cone Newton Hessian as shipped (run without --no-fix-cone-hessian; "
+            "peghole_mjx/mjx_fixes.py)"
+        )
+    if not x64 and cfg.speed_m_s < 0.005:
+        return f"float32 at a slow pull ({cfg.speed_m_s * 1e3:g} mm/s): run with --x64"
+    if k_rot < 10.0:
+        return (
+            f"a soft rotational spring (K_theta {k_rot:g} N m/rad) with a physics step of "
+            f"{cfg.sim_options().timestep * 1e3:g} ms: try --x64 or a stiffer K_theta"
+        )
+    return (
+        f"the contact settings (step {cfg.sim_options().timestep * 1e3:g} ms, contact time "
+        "constant too short for it) or float32 rounding: try --x64"
+    )
+
+
+def check_not_all_nan(nan: np.ndarray, what: str, cause: str) -> None:
+    """Raise :class:`DivergedError` when every world of ``nan`` (one flag per world) is set."""
+    nan = np.asarray(nan, bool)
+    if nan.size and nan.all():
+        raise DivergedError(
+            f"{what}: every one of its {nan.size} worlds went NaN (the simulation diverged), so "
+            f"there is no result; likely cause: {cause}"
+        )
+
+
 def config_dict(cfg: ExperimentConfig) -> dict:
     """The config as JSON-ready data; ``sim``: the effective simulator options."""
     out = {k: (list(v) if isinstance(v, tuple) else v) for k, v in dataclasses.asdict(cfg).items()}

@@ -33,6 +33,7 @@ from peghole_mjx.errors import UserInputError
 from peghole_mjx.experiments import compliance as cx
 from peghole_mjx.geometry.mjcf import SimOptions
 from peghole_mjx.geometry.specs import MM, PRESETS
+from peghole_mjx.validation import check
 
 #: the standard tilted case (SI; angles in rad, thesis sign)
 STANDARD_CASE = {
@@ -126,17 +127,23 @@ def oracle_errors(res: dict, qs: dict) -> np.ndarray:
     return out
 
 
-def run_variant(
-    preset: str, variant: Variant, worlds: int = 8, seed: int = 0, progress: bool = True
-) -> dict:
-    """Run the standard case on ``worlds`` worlds; per-world metrics and the bounds' verdict."""
+def check_preset(preset: str):
+    """The spec of ``preset`` if it is a rect preset, else UserInputError."""
     spec = PRESETS.get(preset)
     if spec is None or spec.kind != "rect":
         raise UserInputError(
             f"contact-check runs a rect preset (rect-1, rect-2, rect-3), not {preset!r}"
         )
-    if worlds < 1:
-        raise UserInputError("--worlds must be >= 1")
+    return spec
+
+
+def run_variant(
+    preset: str, variant: Variant, worlds: int = 8, seed: int = 0, progress: bool = True
+) -> dict:
+    """Run the standard case on ``worlds`` worlds; per-world metrics and the bounds' verdict
+    (a variant whose every world went NaN has a ``failure`` in its summary, and fails)."""
+    spec = check_preset(preset)
+    check("worlds", worlds, "--worlds")
     # the law and solver as in the envs (no joint-damping cancellation, MJX as shipped): the
     # variants differ in contact settings only (at K_theta 300 N m/rad both are small effects)
     cfg = cx.ExperimentConfig(
@@ -205,6 +212,12 @@ def run_variant(
         "oracle": agree is not None and agree >= BOUNDS["oracle_worlds_fraction_min"],
     }
     summary["pass"]["all"] = all(summary["pass"].values())
+    if rows and all(r["nan"] for r in rows):
+        summary["failure"] = (
+            f"every one of its {worlds} worlds went NaN (the simulation diverged): no metric "
+            "of this variant is a result; likely cause: its step size and contact settings, "
+            "or float32 rounding (try --x64)"
+        )
     import jax
 
     return {

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import csv
 import datetime
-import json
+import io
 import platform
 from pathlib import Path
 
@@ -16,6 +16,7 @@ import matplotlib.pyplot as plt
 import mujoco
 import numpy as np
 
+from peghole_mjx.experiments import outputs
 from peghole_mjx.experiments.compliance import (
     ANALYTIC_MAPPING,
     THESIS,
@@ -152,25 +153,24 @@ def summarise(results: dict[str, dict], cfg: ExperimentConfig, runtime_s: float)
 
 
 def write_outputs(results: dict[str, dict], summary: dict, out: Path) -> list[Path]:
+    """``summary.json``, ``curves.csv`` and two figures in ``out``, each written atomically."""
     out.mkdir(parents=True, exist_ok=True)
-    files = [out / "summary.json"]
-    files[0].write_text(json.dumps(summary, indent=2))
+    files = [outputs.write_json(out / "summary.json", summary, indent=2)]
     # curves.csv: per preset, L_C, repeat: depth-binned filtered force magnitude
-    path = out / "curves.csv"
-    with path.open("w", newline="") as fh:
-        w = csv.writer(fh)
-        w.writerow(["preset", "L_C_mm", "repeat", "depth_mm", "force_N"])
-        for preset, res in results.items():
-            edges = depth_edges(preset)
-            mids = 0.5 * (edges[1:] + edges[:-1])
-            counts: dict[float, int] = {}
-            for wi, lc in enumerate(res["L_C"]):
-                rep = counts.get(lc, 0)
-                counts[lc] = rep + 1
-                for dm, f in zip(mids, binned(res, wi, edges), strict=True):
-                    if np.isfinite(f):
-                        w.writerow([preset, _lc_key(lc), rep, f"{dm:.2f}", f"{f:.4f}"])
-    files.append(path)
+    fh = io.StringIO()
+    w = csv.writer(fh)
+    w.writerow(["preset", "L_C_mm", "repeat", "depth_mm", "force_N"])
+    for preset, res in results.items():
+        edges = depth_edges(preset)
+        mids = 0.5 * (edges[1:] + edges[:-1])
+        counts: dict[float, int] = {}
+        for wi, lc in enumerate(res["L_C"]):
+            rep = counts.get(lc, 0)
+            counts[lc] = rep + 1
+            for dm, f in zip(mids, binned(res, wi, edges), strict=True):
+                if np.isfinite(f):
+                    w.writerow([preset, _lc_key(lc), rep, f"{dm:.2f}", f"{f:.4f}"])
+    files.append(outputs.write_text(out / "curves.csv", fh.getvalue()))
     n = len(results)
     colors = ["tab:green", "tab:orange", "tab:blue"]  # tip, centre, top (thesis colours)
     fig, axes = plt.subplots(1, n, figsize=(4.2 * n, 3.4), squeeze=False)
@@ -189,10 +189,8 @@ def write_outputs(results: dict[str, dict], summary: dict, out: Path) -> list[Pa
         ax.invert_xaxis()
         ax.legend(fontsize=7)
     fig.tight_layout()
-    p = out / "force_depth.png"
-    fig.savefig(p, dpi=80)
+    files.append(outputs.write_png(fig, out / "force_depth.png", dpi=80))
     plt.close(fig)
-    files.append(p)
     fig, axes = plt.subplots(1, n, figsize=(3.2 * n, 3.2), squeeze=False)
     for ax, (preset, res) in zip(axes[0], results.items(), strict=True):
         pk = peak_forces(res)
@@ -203,21 +201,36 @@ def write_outputs(results: dict[str, dict], summary: dict, out: Path) -> list[Pa
         ax.set_ylabel("peak |F| (N)")
         ax.set_title(preset)
     fig.tight_layout()
-    p = out / "peak_boxplot.png"
-    fig.savefig(p, dpi=80)
+    files.append(outputs.write_png(fig, out / "peak_boxplot.png", dpi=80))
     plt.close(fig)
-    files.append(p)
     return files
+
+
+def output_bytes(cfg: ExperimentConfig) -> int:
+    """An upper estimate of what :func:`write_outputs` writes, bytes: per preset curves.csv
+    (< 100 kB) and its share of the figures, per world its part of summary.json."""
+    presets = len(cfg.preset_names())
+    return 2**20 + presets * 256 * 2**10 + presets * 3 * cfg.repeats * 2**10
 
 
 def run_experiment(cfg: ExperimentConfig, out: str | Path) -> tuple[dict, list[Path]]:
     """Run the compliance-centre experiment ``cfg`` (every preset's batched pull), write its
-    curves, figures and ``summary.json`` into ``out``; return the summary and the files."""
+    curves, figures and ``summary.json`` into ``out``; return the summary and the files.
+
+    ``out`` is checked (a writable folder with room for the outputs) before the first
+    simulation step; a run whose every world went NaN is a
+    :class:`~peghole_mjx.experiments.compliance.DivergedError`, not a result."""
     import time
 
-    from peghole_mjx.experiments.compliance import Extraction
+    from peghole_mjx.experiments.compliance import Extraction, check_not_all_nan, nan_cause
 
+    out = outputs.check_out(out, output_bytes(cfg))
     t0 = time.time()
     results = {name: Extraction(name, cfg).run() for name in cfg.preset_names()}
+    check_not_all_nan(
+        np.concatenate([np.asarray(r["nan"], bool) for r in results.values()]),
+        f"the compliance experiment ({', '.join(results)})",
+        nan_cause(cfg, x64=bool(jax.config.jax_enable_x64)),
+    )
     summary = summarise(results, cfg, time.time() - t0)
-    return summary, write_outputs(results, summary, Path(out))
+    return summary, write_outputs(results, summary, out)

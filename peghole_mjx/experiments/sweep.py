@@ -18,24 +18,34 @@ All worlds of one (preset, friction) pair run in one compiled batch, in slices o
 
 from __future__ import annotations
 
+import contextlib
 import csv
 import dataclasses
 import hashlib
+import io
 import itertools
 import json
 import math
 import os
+import socket
+import sys
 import time
+import zipfile
+import zlib
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 from tqdm import tqdm
 
+from peghole_mjx import fileio
 from peghole_mjx.errors import UserInputError
 from peghole_mjx.experiments import compliance as cx
+from peghole_mjx.experiments import outputs
 from peghole_mjx.geometry.specs import MM, PRESETS
 from peghole_mjx.provenance import provenance
+from peghole_mjx.training.lock import _alive, _proc_start
+from peghole_mjx.validation import RANGES, _num
 
 #: thesis R1 (Sec 3.5): reductions of the mean peak extraction force, %
 R1 = {"tip_vs_top": 77.1, "tip_vs_centre": 55.6}
@@ -84,15 +94,18 @@ class Grid:
         return out
 
     def check(self) -> Grid:
-        """Validate the values (one clear line per problem)."""
+        """Validate the values against :data:`~peghole_mjx.validation.RANGES` (one clear line
+        per problem): finite, in range, no value twice, a bounded number of cells and worlds."""
         if not self.presets:
             raise UserInputError("the sweep grid is empty: no presets")
-        for name in ("k_rot_Nm_rad", "beta0_deg", "mu", "k_lat_N_m", "delta0_mm"):
+        _no_duplicates("--presets", self.presets)
+        for name, (kind, label, unit) in GRID_AXES.items():
             vals = getattr(self, name)
             if len(vals) == 0:
                 raise UserInputError(f"the sweep grid is empty: no {name} values")
-            if not all(math.isfinite(v) for v in vals):
-                raise UserInputError(f"{name} values must be finite, got {list(vals)}")
+            _no_duplicates(label, vals)
+            for v in vals:
+                check_value(kind, v, label, unit)
         kinds = set()
         for p in self.presets:
             if p not in PRESETS:
@@ -100,25 +113,66 @@ class Grid:
             kinds.add(PRESETS[p].kind)
         if len(kinds) > 1:
             raise UserInputError("a sweep runs one geometry: rect or dual presets, not both")
-        if any(v <= 0 for v in self.k_rot_Nm_rad):
-            raise UserInputError(f"K_theta must be > 0 N m/rad, got {list(self.k_rot_Nm_rad)}")
-        if any(v <= 0 for v in self.k_lat_N_m):
-            raise UserInputError(f"K_lat must be > 0 N/m, got {list(self.k_lat_N_m)}")
-        if any(not 0 <= v <= 2 for v in self.mu):
-            raise UserInputError(f"friction must be in [0, 2], got {list(self.mu)}")
-        if any(abs(v) > 5 for v in self.beta0_deg):
-            raise UserInputError("|beta0| must be <= 5 deg (small-angle regime of the thesis)")
-        if any(v < 0 for v in self.delta0_mm):
-            raise UserInputError("delta0 must be >= 0 mm")
-        if self.repeats < 2:
-            raise UserInputError("repeats must be >= 2 (intervals need at least two draws)")
-        if not (math.isfinite(self.theta0_deg) and abs(self.theta0_deg) <= 5):
-            raise UserInputError("|theta0| must be <= 5 deg (small-angle regime of the thesis)")
+        check_value("sweep_repeats", self.repeats, "--repeats")
+        check_value("theta0_deg", self.theta0_deg, "theta0", "deg")
+        if self.theta0_arm_deg is not None:
+            check_value("theta0_deg", self.theta0_arm_deg, "theta0 arm", "deg")
+        n_cells = len(self.cells())
+        what = "the grid's cells (presets x mu x K_theta x K_lat x delta0 x beta0 arms)"
+        check_value("grid_cells", n_cells, what)
+        what = f"the sweep's worlds ({n_cells} cells x 3 L_C x {self.repeats} repeats)"
+        check_value("sweep_worlds", n_cells * 3 * self.repeats, what)
         return self
 
     @property
     def geometry(self) -> str:
         return PRESETS[self.presets[0]].kind
+
+
+#: the grid's value axes: field -> (RANGES name, option, unit)
+GRID_AXES = {
+    "k_rot_Nm_rad": ("k_rot_Nm_rad", "K_theta", "N m/rad"),
+    "beta0_deg": ("beta0_deg", "beta0", "deg"),
+    "mu": ("friction", "friction", ""),
+    "k_lat_N_m": ("k_lat_N_m", "K_lat", "N/m"),
+    "delta0_mm": ("delta0_mm", "delta0", "mm"),
+}
+
+
+def check_value(kind: str, value, label: str, unit: str = "") -> float | int:
+    """``value`` if it lies in ``RANGES[kind]``, else :class:`UserInputError` in one line that
+    states the bound with its unit and reason (``K_theta must be > 0 N m/rad, got -3``)."""
+    rng = RANGES[kind]
+    if rng.problem(value) is None:
+        return int(value) if rng.integer else float(value)
+    u = f" {unit}" if unit else ""
+    if isinstance(value, bool) or not isinstance(value, int | float) or not math.isfinite(value):
+        raise UserInputError(f"{label} must be finite, got {value!r}")
+    if rng.integer and value != int(value):
+        raise UserInputError(f"{label} must be a whole number, got {value!r}")
+    got = f"{value:g}" if isinstance(value, float) else str(value)
+    lo, hi = rng.lo, rng.hi
+    if lo is not None and (value <= lo if rng.lo_open else value < lo):
+        bound, why = f"{'>' if rng.lo_open else '>='} {_num(lo)}{u}", rng.why_lo
+        if hi is not None and lo == -hi:  # a symmetric range: state the magnitude
+            label, bound, why = f"|{label}|", f"<= {_num(hi)}{u}", rng.why_hi
+    else:
+        bound, why = f"{'<' if rng.hi_open else '<='} {_num(hi)}{u}", rng.why_hi
+        if lo is not None and lo == -hi:
+            label = f"|{label}|"
+    raise UserInputError(f"{label} must be {bound}" + (f" ({why})" if why else "") + f", got {got}")
+
+
+def _no_duplicates(label: str, values) -> None:
+    seen = set()
+    for v in values:
+        if v in seen:
+            raise UserInputError(
+                f"{label} lists {v:g} twice"
+                if isinstance(v, float)
+                else f"{label} lists {v!r} twice"
+            )
+        seen.add(v)
 
 
 #: named grids: "cpu" holds the cells that decide the question (issue's CPU subset), "full" the
@@ -267,20 +321,41 @@ def group_key(cfg: SweepConfig, preset: str, mu: float) -> str:
     return _key(settings)
 
 
+def part_path(cfg: SweepConfig, out: Path, preset: str, mu: float, s0: int) -> Path:
+    """The file of the slice of worlds ``s0 ..`` of the (preset, mu) scene."""
+    return Path(out) / "parts" / f"{preset}_mu{mu:g}_{group_key(cfg, preset, mu)}_{s0:06d}.npz"
+
+
+def output_bytes(cfg: SweepConfig) -> int:
+    """An upper estimate of what the sweep writes, bytes: per world its slice summary (peaks,
+    flags and a binned F_z curve in float64), per cell its rows in the JSON and CSV, and the
+    figures."""
+    g = cfg.grid.geometry
+    bins = math.ceil(PRESETS_LENGTH[g] / CURVE_BIN_MM[g])
+    cells = len(cfg.grid.cells())
+    worlds = cells * 3 * cfg.grid.repeats
+    return 2 * 2**20 + worlds * (8 * bins + 2 * 2**10) + cells * (3 * 12 * bins + 16 * 2**10)
+
+
 def run_sweep(cfg: SweepConfig, out: Path, progress: bool = True) -> dict:
     """Run (or resume) the sweep into ``out``; returns the result dict (also written as
-    ``out/compliance_sweep_<geometry>.json`` and ``.csv``)."""
+    ``out/compliance_sweep_<geometry>.json`` and ``.csv``).
+
+    Before the first simulation step the grid and ``out`` are checked (a writable folder with
+    room for an estimate of the output). A damaged slice file is set aside (renamed
+    ``*.damaged``) and recomputed; a slice claimed by a live process is waited for (at most
+    :data:`CLAIM_WAIT_S`, with a notice naming the holder). A sweep whose every world went NaN
+    raises :class:`~peghole_mjx.experiments.compliance.DivergedError` instead of writing a
+    result."""
     grid = cfg.grid.check()
     geometry = grid.geometry
     exp = dataclasses.replace(cfg.experiment, geometry=geometry)
     cfg = dataclasses.replace(cfg, experiment=exp)
-    if cfg.batch_worlds < 1:
-        raise UserInputError("--batch-worlds must be >= 1")
-    out = Path(out)
-    if out.exists() and not out.is_dir():
-        raise UserInputError(f"--out {out} exists and is not a folder")
-    parts = out / "parts"
-    parts.mkdir(parents=True, exist_ok=True)
+    check_value("batch_worlds", cfg.batch_worlds, "--batch-worlds")
+    check_value("seed", cfg.seed, "--seed")
+    check_value("speed_mm_s", exp.speed_m_s * 1e3, "--speed-mm-s", "mm/s")
+    out = outputs.check_out(out, output_bytes(cfg))
+    fileio.check_out_dir(out / "parts", "--out")
     cells = grid.cells()
     t0 = time.time()
     # group the cells by (preset, mu): one compiled scene each
@@ -292,54 +367,62 @@ def run_sweep(cfg: SweepConfig, out: Path, progress: bool = True) -> dict:
         math.ceil(len(ix) * 3 * grid.repeats / cfg.batch_worlds) for ix in groups.values()
     )
     bar = tqdm(total=n_slices, desc=f"sweep {geometry}", disable=not progress)
-    for (preset, mu), ix in groups.items():
-        key = group_key(cfg, preset, mu)
-        tabs = [cell_table(cells[i], grid.repeats, cfg.seed) for i in ix]
-        table = {k: np.concatenate([t[k] for t in tabs]) for k in cx.WORLD_KEYS}
-        owner = np.repeat(np.arange(len(ix)), 3 * grid.repeats)
-        nw = len(owner)
-        summaries: dict[int, dict] = {}
-        deferred: list[int] = []
-        ex = None
-        for s0 in range(0, nw, cfg.batch_worlds):
-            path = parts / f"{preset}_mu{mu:g}_{key}_{s0:06d}.npz"
-            if path.exists():
-                summaries[s0] = _load_part(path)
+    try:  # the bar is closed before an error line is printed
+        for (preset, mu), ix in groups.items():
+            tabs = [cell_table(cells[i], grid.repeats, cfg.seed) for i in ix]
+            table = {k: np.concatenate([t[k] for t in tabs]) for k in cx.WORLD_KEYS}
+            owner = np.repeat(np.arange(len(ix)), 3 * grid.repeats)
+            nw = len(owner)
+            summaries: dict[int, dict] = {}
+            deferred: list[int] = []
+            ex = None
+            for s0 in range(0, nw, cfg.batch_worlds):
+                path = part_path(cfg, out, preset, mu, s0)
+                n = min(cfg.batch_worlds, nw - s0)
+                summ = _read_part(path, n)
+                if summ is None:
+                    if not _claim(path):  # another process of the same sweep is running this slice
+                        deferred.append(s0)
+                        continue
+                    ex = cx.Extraction(preset, exp, mu=mu) if ex is None else ex
+                    summ = _run_slice(ex, table, s0, cfg.batch_worlds, nw, geometry, path)
+                summaries[s0] = summ
                 bar.update()
-                continue
-            if not _claim(path):  # another process of the same sweep is running this slice
-                deferred.append(s0)
-                continue
-            if ex is None:
-                ex = cx.Extraction(preset, exp, mu=mu)
-            summaries[s0] = _run_slice(ex, table, s0, cfg.batch_worlds, nw, geometry, path)
-            bar.update()
-        for s0 in deferred:
-            path = parts / f"{preset}_mu{mu:g}_{key}_{s0:06d}.npz"
-            while not path.exists() and not _claim(path):
-                time.sleep(5.0)
-            if path.exists():
-                summaries[s0] = _load_part(path)
-            else:  # its process died: run it here
-                if ex is None:
-                    ex = cx.Extraction(preset, exp, mu=mu)
-                summaries[s0] = _run_slice(ex, table, s0, cfg.batch_worlds, nw, geometry, path)
-            bar.update()
-        summaries = [summaries[k] for k in sorted(summaries)]
-        merged = {
-            k: (
-                summaries[0][k]
-                if k == "curve_edges_mm"
-                else np.concatenate([s[k] for s in summaries])
-            )
-            for k in summaries[0]
-            if all(k in s for s in summaries)  # a key added to the summaries since a part ran
-        }
-        for j, i in enumerate(ix):
-            sel = owner == j
-            per_cell[i] = {k: (v if k == "curve_edges_mm" else v[sel]) for k, v in merged.items()}
-            per_cell[i]["table"] = tabs[j]
-    bar.close()
+            for s0 in deferred:
+                path = part_path(cfg, out, preset, mu, s0)
+                n = min(cfg.batch_worlds, nw - s0)
+                summ = None
+                while summ is None:
+                    if _wait_for_slice(path):  # written by its holder
+                        summ = _read_part(path, n)  # None: damaged, set aside
+                    else:  # its holder ended without writing it: the claim is ours
+                        ex = cx.Extraction(preset, exp, mu=mu) if ex is None else ex
+                        summ = _run_slice(ex, table, s0, cfg.batch_worlds, nw, geometry, path)
+                summaries[s0] = summ
+                bar.update()
+            summaries = [summaries[k] for k in sorted(summaries)]
+            merged = {
+                k: (
+                    summaries[0][k]
+                    if k == "curve_edges_mm"
+                    else np.concatenate([s[k] for s in summaries])
+                )
+                for k in summaries[0]
+                if all(k in s for s in summaries)  # a key added to the summaries since a part ran
+            }
+            for j, i in enumerate(ix):
+                sel = owner == j
+                per_cell[i] = {
+                    k: (v if k == "curve_edges_mm" else v[sel]) for k, v in merged.items()
+                }
+                per_cell[i]["table"] = tabs[j]
+    finally:
+        bar.close()
+    cx.check_not_all_nan(
+        np.concatenate([per_cell[i]["nan"] for i in range(len(cells))]),
+        f"the {geometry} sweep in {out}",
+        cx.nan_cause(exp, x64=cfg.x64, k_rot_min=min(grid.k_rot_Nm_rad)),
+    )
     rows = [_cell_result(cells[i], per_cell[i], grid, cfg.seed, exp) for i in range(len(cells))]
     result = {
         "geometry": geometry,
@@ -354,43 +437,266 @@ def run_sweep(cfg: SweepConfig, out: Path, progress: bool = True) -> dict:
     return result
 
 
-def _load_part(path: Path) -> dict[str, np.ndarray]:
-    with np.load(path) as z:
-        return {k: z[k] for k in z.files}
+#: what a slice file holds per world (besides ``curve_edges_mm``, the curve bins' edges);
+#: parts written before a key existed may lack the optional ones
+PART_KEYS = (
+    "peak_fz",
+    "peak_fz_late",
+    "peak_mag",
+    "peak_mag_late",
+    "nan",
+    "penetration_mm",
+    "two_point_samples",
+    "curve_fz",
+)
+PART_OPTIONAL_KEYS = ("penetration_in_hole_mm", "penetration_two_point_mm", "both_frac")
+#: what reading a damaged npz can raise (random bytes: "pickled data"; truncated: zip errors)
+_NPZ_ERRORS = (OSError, ValueError, EOFError, KeyError, zipfile.BadZipFile, zlib.error)
+
+
+def _part_problem(d: dict[str, np.ndarray], n: int) -> str | None:
+    """What is wrong with the arrays of a slice of ``n`` worlds, or None."""
+    missing = [k for k in (*PART_KEYS, "curve_edges_mm") if k not in d]
+    if missing:
+        return f"it lacks {', '.join(missing)}"
+    for k, v in d.items():
+        if v.dtype.kind not in "biuf":
+            return f"{k} holds {v.dtype} values, not numbers"
+    edges = d["curve_edges_mm"]
+    if edges.ndim != 1 or len(edges) < 2 or not np.all(np.diff(edges) > 0):
+        return "curve_edges_mm is not an increasing list of bin edges"
+    for k in (*PART_KEYS, *PART_OPTIONAL_KEYS):
+        if k not in d:
+            continue
+        want = (n, len(edges) - 1) if k == "curve_fz" else (n,)
+        if d[k].shape != want:
+            return f"{k} has shape {d[k].shape}, not {want} ({n} worlds)"
+    return None
+
+
+def _read_part(path: Path, n: int) -> dict[str, np.ndarray] | None:
+    """The slice saved in ``path`` (``n`` worlds), schema-checked; None if there is none. A
+    damaged file is set aside (renamed ``*.damaged``, not deleted) with a warning naming it,
+    and None returned, so that the slice is recomputed."""
+    try:
+        with open(path, "rb") as f:
+            is_zip = f.read(4) == b"PK\x03\x04"
+        z = np.load(path, allow_pickle=False) if is_zip else None
+    except FileNotFoundError:
+        return None
+    except _NPZ_ERRORS as exc:
+        problem = f"unreadable: {' '.join(str(exc).split()) or type(exc).__name__}"
+    else:
+        if not isinstance(z, np.lib.npyio.NpzFile):
+            problem = "not an npz archive"
+        else:
+            try:
+                with z:
+                    d = {k: z[k] for k in z.files}
+            except _NPZ_ERRORS as exc:
+                problem = f"unreadable: {' '.join(str(exc).split()) or type(exc).__name__}"
+            else:
+                problem = _part_problem(d, n)
+                if problem is None:
+                    return d
+    _set_aside(path, problem)
+    return None
+
+
+def _set_aside(path: Path, problem: str) -> None:
+    dest = path.with_name(path.name + ".damaged")
+    k = 1
+    while dest.exists():
+        dest = path.with_name(f"{path.name}.damaged{k}")
+        k += 1
+    try:
+        os.rename(path, dest)
+    except FileNotFoundError:  # another process of the sweep set it aside first
+        return
+    fileio.fsync_dir(path.parent)
+    tqdm.write(
+        f"warning: sweep slice {path} is damaged ({problem}); set aside as {dest.name}, "
+        "recomputing it",
+        file=sys.stderr,
+    )
+
+
+#: a slice claimed by a live process is waited for at most this long, s, polled every
+#: CLAIM_POLL_S, with a notice every CLAIM_NOTICE_S; then the sweep stops naming the holder
+#: (rerun the command once that process has ended: it resumes from the saved slices)
+CLAIM_WAIT_S = 3 * 3600.0
+CLAIM_POLL_S = 5.0
+CLAIM_NOTICE_S = 600.0
+
+
+class SliceClaimedError(UserInputError):
+    """A slice stayed claimed by a live process for longer than :data:`CLAIM_WAIT_S`."""
+
+
+def _claim_record() -> dict:
+    return {
+        "pid": os.getpid(),
+        "host": socket.gethostname(),
+        "start": _proc_start(os.getpid()),
+        "since": time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime()),
+    }
+
+
+def _claim_holder(claim: Path) -> dict | None:
+    """A claim's record: ``{"pid", "host", "start", "since"}`` (a claim of an older version
+    holds only the PID), ``{}`` if unreadable, None if there is no claim."""
+    try:
+        text = claim.read_text()
+    except FileNotFoundError:
+        return None
+    except OSError:
+        return {}
+    try:
+        rec = json.loads(text)
+    except ValueError:
+        return {}
+    if isinstance(rec, int) and not isinstance(rec, bool):
+        return {"pid": rec}  # an older version's claim: the PID only
+    return rec if isinstance(rec, dict) else {}
+
+
+def _claim_is_ours(rec: dict) -> bool:
+    return rec.get("pid") == os.getpid() and rec.get("host", socket.gethostname()) == (
+        socket.gethostname()
+    )
+
+
+def _claim_stale(rec: dict) -> str | None:
+    """Why the claim ``rec`` is stale (its process is gone or its PID now names another
+    process), or None while its process may still be running (or cannot be checked)."""
+    pid = rec.get("pid")
+    if not isinstance(pid, int) or isinstance(pid, bool) or pid <= 0:
+        return "the claim is unreadable"
+    if rec.get("host", socket.gethostname()) != socket.gethostname():
+        return None  # another host's processes cannot be checked from here
+    if not _alive(pid) or _zombie(pid):
+        return f"pid {pid} is gone"
+    start = _proc_start(pid)
+    if rec.get("start") is not None and start is not None and start != rec["start"]:
+        return f"pid {pid} now belongs to another process (started later)"
+    return None
+
+
+def _zombie(pid: int) -> bool:
+    """Whether ``pid`` has ended but not been reaped by its parent (Linux ``/proc``)."""
+    try:
+        stat = Path(f"/proc/{pid}/stat").read_text()
+    except OSError:
+        return False
+    return stat.rsplit(")", 1)[-1].split()[0] == "Z"
+
+
+def _describe_holder(rec: dict) -> str:
+    host = f" on {rec['host']}" if rec.get("host") else ""
+    since = f", since {rec['since']}" if rec.get("since") else ""
+    return f"pid {rec.get('pid', '?')}{host}{since}"
 
 
 def _claim(path: Path) -> bool:
-    """Take the slice ``path`` for this process (a ``.claim`` file holding the PID), so that
-    several processes can share one sweep folder; a claim whose process is gone is taken
-    over. False if a live process holds it."""
+    """Take the slice ``path`` for this process, so that several processes can share one
+    sweep folder. The claim (``.claim`` beside it) records the PID, host and start time of the
+    process, and is created complete (written under a temporary name, then hard-linked). A
+    claim whose process is gone, or whose PID now belongs to a later process, is taken over
+    with a warning. False while a live process holds it."""
     claim = path.with_suffix(".claim")
-    for _ in range(2):
-        try:
-            fd = os.open(claim, os.O_CREAT | os.O_EXCL | os.O_WRONLY)
-        except FileExistsError:
+    tmp = claim.with_name(f".{claim.name}.{os.getpid()}")
+    tmp.write_text(json.dumps(_claim_record()) + "\n")
+    try:
+        for _ in range(3):
             try:
-                pid = int(claim.read_text().strip() or 0)
-            except (OSError, ValueError):
-                pid = 0
-            if pid == os.getpid():
+                os.link(tmp, claim)  # atomic: fails if a claim exists
                 return True
-            alive = False
-            if pid > 0:
-                try:
-                    os.kill(pid, 0)
-                    alive = True
-                except ProcessLookupError:
-                    alive = False
-                except PermissionError:
-                    alive = True
-            if alive:
+            except FileExistsError:
+                pass
+            rec = _claim_holder(claim)
+            if rec is None:
+                continue  # released meanwhile
+            if _claim_is_ours(rec):
+                return True
+            why = _claim_stale(rec)
+            if why is None:
                 return False
-            claim.unlink(missing_ok=True)
-            continue
-        with os.fdopen(fd, "w") as f:
-            f.write(str(os.getpid()))
-        return True
-    return False
+            # set the stale claim aside under a private name, then check it is the one read
+            # (not a fresh claim another process made meanwhile)
+            mine = claim.with_name(f".{claim.name}.stale.{os.getpid()}")
+            try:
+                os.rename(claim, mine)
+            except FileNotFoundError:
+                continue
+            if _claim_holder(mine) != rec:
+                with contextlib.suppress(OSError):
+                    os.link(mine, claim)  # put it back
+                mine.unlink(missing_ok=True)
+                continue
+            mine.unlink(missing_ok=True)
+            tqdm.write(
+                f"warning: taking over sweep slice {path.name}: its claim ({_describe_holder(rec)}"
+                f") is stale, {why}",
+                file=sys.stderr,
+            )
+        return False
+    finally:
+        tmp.unlink(missing_ok=True)
+
+
+def _release(path: Path) -> None:
+    """Remove this process's claim of the slice ``path``."""
+    claim = path.with_suffix(".claim")
+    rec = _claim_holder(claim)
+    if rec and _claim_is_ours(rec):
+        claim.unlink(missing_ok=True)
+
+
+def _wait_for_slice(path: Path) -> bool:
+    """Wait for the live process that claimed the slice ``path``: True once its file exists,
+    False once the claim is ours (its holder ended without writing it). A notice naming the
+    holder is printed when the wait starts and every :data:`CLAIM_NOTICE_S`; after
+    :data:`CLAIM_WAIT_S` :class:`SliceClaimedError` names it."""
+    t0 = last = time.monotonic()
+    first = True
+    while True:
+        if path.exists():
+            return True
+        if _claim(path):
+            return False
+        rec = _claim_holder(path.with_suffix(".claim")) or {}
+        now = time.monotonic()
+        if now - t0 >= CLAIM_WAIT_S:
+            raise SliceClaimedError(
+                f"sweep slice {path} is still claimed by {_describe_holder(rec)} after "
+                f"{now - t0:.0f} s: rerun this command when that process has ended (it resumes "
+                f"from the saved slices), or delete {path.with_suffix('.claim')} if that process "
+                "is not a peghole sweep"
+            )
+        if first or now - last >= CLAIM_NOTICE_S:
+            tqdm.write(
+                f"waiting for sweep slice {path.name}, claimed by {_describe_holder(rec)} "
+                f"(at most {CLAIM_WAIT_S:.0f} s)",
+                file=sys.stderr,
+            )
+            first, last = False, now
+        time.sleep(CLAIM_POLL_S)
+
+
+def _simulate_slice(
+    ex: cx.Extraction,
+    table: dict[str, np.ndarray],
+    s0: int,
+    batch: int,
+    nw: int,
+    geometry: str,
+) -> dict[str, np.ndarray]:
+    """Run worlds ``s0 .. s0 + batch`` (the last slice padded to the compiled batch size)."""
+    n = min(batch, nw - s0)
+    pad = np.r_[np.arange(s0, s0 + n), np.full(batch - n, s0)]
+    res = ex.run(progress=False, table={k: v[pad] for k, v in table.items()})
+    summ = _world_summary(res, geometry)
+    return {k: (v if k == "curve_edges_mm" else v[:n]) for k, v in summ.items()}
 
 
 def _run_slice(
@@ -402,17 +708,13 @@ def _run_slice(
     geometry: str,
     path: Path,
 ) -> dict[str, np.ndarray]:
-    """Run worlds ``s0 .. s0 + batch`` (the last slice padded to the compiled batch size),
-    save their summaries atomically to ``path`` and release the claim."""
-    n = min(batch, nw - s0)
-    pad = np.r_[np.arange(s0, s0 + n), np.full(batch - n, s0)]
-    res = ex.run(progress=False, table={k: v[pad] for k, v in table.items()})
-    summ = _world_summary(res, geometry)
-    summ = {k: (v if k == "curve_edges_mm" else v[:n]) for k, v in summ.items()}
-    tmp = path.with_suffix(".tmp.npz")
-    np.savez(tmp, **summ)
-    os.replace(tmp, path)
-    path.with_suffix(".claim").unlink(missing_ok=True)
+    """Run a slice (:func:`_simulate_slice`), save its summaries atomically to ``path`` (file
+    and folder flushed to disk) and release the claim, also when it fails."""
+    try:
+        summ = _simulate_slice(ex, table, s0, batch, nw, geometry)
+        outputs.write_npz(path, summ)
+    finally:
+        _release(path)
     return summ
 
 
@@ -537,32 +839,31 @@ def write_results(result: dict, out: Path) -> list[Path]:
     """``compliance_sweep_<geometry>.json`` (everything) and ``.csv`` (one row per cell)."""
     g = result["geometry"]
     jpath = out / f"compliance_sweep_{g}.json"
-    tmp = jpath.with_suffix(".json.tmp")
-    tmp.write_text(json.dumps(clean_json(result), indent=1, allow_nan=False))
-    os.replace(tmp, jpath)
     cpath = out / f"compliance_sweep_{g}.csv"
     lcs = cx.LC_MM[g]
-    with cpath.open("w", newline="") as f:
-        w = csv.writer(f)
+    f = io.StringIO()
+    w = csv.writer(f)
+    w.writerow(
+        [*CSV_COLUMNS]
+        + [f"peak_fz_N_LC{lc:g}" for lc in lcs]
+        + ["red_tip_top_pct", "red_tip_top_lo", "red_tip_top_hi"]
+        + ["red_tip_centre_pct", "red_tip_centre_lo", "red_tip_centre_hi"]
+        + ["qs_red_tip_top_pct", "qs_red_tip_centre_pct"]
+    )
+    for row in result["cells"]:
+        t, c = row["reduction_tip_vs_top_pct"], row["reduction_tip_vs_centre_pct"]
         w.writerow(
-            [*CSV_COLUMNS]
-            + [f"peak_fz_N_LC{lc:g}" for lc in lcs]
-            + ["red_tip_top_pct", "red_tip_top_lo", "red_tip_top_hi"]
-            + ["red_tip_centre_pct", "red_tip_centre_lo", "red_tip_centre_hi"]
-            + ["qs_red_tip_top_pct", "qs_red_tip_centre_pct"]
+            [_fmt(row[k]) for k in CSV_COLUMNS]
+            + [_fmt(row["peak_fz_N"][f"{lc:g}"]) for lc in lcs]
+            + [_fmt(t["value"]), *(_fmt(x) for x in (t["ci95"] or [None, None]))]
+            + [_fmt(c["value"]), *(_fmt(x) for x in (c["ci95"] or [None, None]))]
+            + [
+                _fmt(row["quasi_static"]["reduction_tip_vs_top_pct"]),
+                _fmt(row["quasi_static"]["reduction_tip_vs_centre_pct"]),
+            ]
         )
-        for row in result["cells"]:
-            t, c = row["reduction_tip_vs_top_pct"], row["reduction_tip_vs_centre_pct"]
-            w.writerow(
-                [_fmt(row[k]) for k in CSV_COLUMNS]
-                + [_fmt(row["peak_fz_N"][f"{lc:g}"]) for lc in lcs]
-                + [_fmt(t["value"]), *(_fmt(x) for x in (t["ci95"] or [None, None]))]
-                + [_fmt(c["value"]), *(_fmt(x) for x in (c["ci95"] or [None, None]))]
-                + [
-                    _fmt(row["quasi_static"]["reduction_tip_vs_top_pct"]),
-                    _fmt(row["quasi_static"]["reduction_tip_vs_centre_pct"]),
-                ]
-            )
+    outputs.write_text(jpath, json.dumps(clean_json(result), indent=1, allow_nan=False))
+    outputs.write_text(cpath, f.getvalue())
     return [jpath, cpath]
 
 
@@ -698,10 +999,8 @@ def write_figures(result: dict, out: Path) -> list[Path]:
     axes[0].set_ylabel("peak F_z reduction, % (dashed: oracle)")
     axes[1].legend(fontsize=7, loc="lower right")
     fig.tight_layout()
-    p = out / f"reduction_vs_regime_{g}.png"
-    fig.savefig(p, dpi=110)
+    paths.append(outputs.write_png(fig, out / f"reduction_vs_regime_{g}.png", dpi=110))
     plt.close(fig)
-    paths.append(p)
 
     shown = _force_depth_cells(result)
     if shown:
@@ -721,8 +1020,6 @@ def write_figures(result: dict, out: Path) -> list[Path]:
             )
             ax.legend(fontsize=8)
         fig.tight_layout()
-        p = out / f"force_depth_{g}.png"
-        fig.savefig(p, dpi=110)
+        paths.append(outputs.write_png(fig, out / f"force_depth_{g}.png", dpi=110))
         plt.close(fig)
-        paths.append(p)
     return paths

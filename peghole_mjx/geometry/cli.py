@@ -163,6 +163,8 @@ def cmd_check(args: argparse.Namespace) -> int:
         if not got:  # only the other geometry's representations were asked for
             resolve_representation(spec, asked[0])
         jobs += [(name, spec, r) for r in got]
+    if args.out:  # about 1 kB of JSON per row and the provenance: checked before the work
+        fileio.check_room(args.out, 4096 * (len(jobs) + 4) + (1 << 20))
     rows = []
     for name, spec, rep in tqdm(
         jobs, desc="models check", unit="row", file=sys.stderr, disable=len(jobs) == 1

@@ -194,6 +194,147 @@ def estimate_radial_clearance_mm(peg, hole) -> float:
     return float(dist.min() / MM)
 
 
+#: how deep the peg may reach into the hole part (and the hole into the peg) in the assembled
+#: pose, mm: MuJoCo's steady contact penetration (micrometres); parts that touch pass
+INTERFERENCE_TOL_MM = 1e-3
+#: surface points sampled on each part for the peg-hole checks (plus every vertex)
+CHECK_SAMPLES = 4000
+
+
+def _fmt_mm(p: np.ndarray) -> str:
+    return "(" + ", ".join(f"{v / MM:.3g}" for v in p) + ") mm"
+
+
+def _surface_points(mesh, n: int, seed: int) -> np.ndarray:
+    trimesh = _cad("trimesh")
+    pts, _ = trimesh.sample.sample_surface(mesh, n, seed=seed)
+    return np.concatenate([np.asarray(pts), np.asarray(mesh.vertices)])
+
+
+def _deepest_inside(solid, pts: np.ndarray) -> tuple[float, np.ndarray | None]:
+    """Largest depth (m) of ``pts`` inside ``solid`` and where (None if none is inside)."""
+    trimesh = _cad("trimesh")
+    inside = pts[solid.contains(pts)]
+    if not len(inside):
+        return 0.0, None
+    _, dist, _ = trimesh.proximity.closest_point(solid, inside)
+    i = int(np.argmax(dist))
+    return float(dist[i]), inside[i]
+
+
+def _interference_volume_mm3(peg, hole) -> float | None:
+    """Volume of the intersection of the two solids (mm^3), None without manifold3d."""
+    try:
+        import manifold3d  # noqa: F401  (trimesh's boolean engine)
+    except ImportError:
+        return None
+    try:
+        return float(peg.intersection(hole).volume) / MM**3
+    except (ValueError, RuntimeError, IndexError):  # extra detail; the depth is the verdict
+        return None
+
+
+def check_assembly(peg, hole, units: str = "mm") -> None:
+    """Refuse parts that are not a peg in its hole, before any decomposition or MJCF.
+
+    ``peg`` and ``hole`` are watertight meshes in metres in the assembled pose. Each
+    failed condition raises :class:`UserInputError` naming it, in this order:
+
+    1. size: each part's largest extent lies in ``RANGES["cad_part_mm"]`` (wrong ``--units``
+       give a part a thousand times too small or large);
+    2. peg inside the hole: the peg reaches below the hole part's top, and every sampled point
+       of the peg within the hole part's height is surrounded by the hole part (a horizontal
+       ray in each of +x, -x, +y, -y meets it) - a peg beside the block, or the two files
+       swapped, fail;
+    3. no interference: no sampled point of either part lies deeper than
+       :data:`INTERFERENCE_TOL_MM` inside the other (the depth, where, and the intersection
+       volume by a boolean when manifold3d is installed);
+    4. extractable along +z: no sampled point of the peg has hole material straight above it
+       (the upward ray from it meets the hole part beyond the tolerance): no undercut.
+
+    The checks are sampled (:data:`CHECK_SAMPLES` surface points per part and every vertex):
+    a feature narrower than the sample spacing can escape them.
+    """
+    from peghole_mjx.validation import RANGES
+
+    rng = RANGES["cad_part_mm"]
+    for label, mesh in (("peg", peg), ("hole", hole)):
+        extent = float(np.max(mesh.extents)) / MM
+        if rng.problem(extent):
+            raise UserInputError(
+                f"not a peg-hole (part size): the {label} part is {extent:.6g} mm across "
+                f"with --units {units}, outside [{rng.lo:g}, {rng.hi:g}] mm "
+                f"({rng.why_lo if extent < rng.lo else rng.why_hi}); are the units right?"
+            )
+    tol = INTERFERENCE_TOL_MM * MM
+    top = float(hole.bounds[1, 2])
+    if peg.bounds[0, 2] >= top - tol:
+        raise UserInputError(
+            "not a peg-hole (peg inside the hole): the peg's lowest point is "
+            f"{(peg.bounds[0, 2] - top) / MM:.4g} mm above the hole part's top; export both "
+            "parts in their assembled pose (peg fully inserted), +z = extraction"
+        )
+    peg_pts = _surface_points(peg, CHECK_SAMPLES, seed=2)
+    z = peg_pts[:, 2]
+    below = peg_pts[(z < top - tol) & (z > hole.bounds[0, 2] + tol)]  # within the block's height
+    if not len(below):
+        raise UserInputError(
+            "not a peg-hole (peg inside the hole): no part of the peg lies within the hole "
+            "part's height; export both parts in their assembled pose (peg fully inserted)"
+        )
+    for axis, sign in ((0, 1.0), (0, -1.0), (1, 1.0), (1, -1.0)):
+        d = np.zeros(3)
+        d[axis] = sign
+        hit = hole.ray.intersects_any(below, np.tile(d, (len(below), 1)))
+        if not hit.all():
+            p = below[np.argmin(hit)]
+            name = ("+" if sign > 0 else "-") + "xy"[axis]
+            raise UserInputError(
+                "not a peg-hole (peg inside the hole): "
+                f"{100 * (1 - hit.mean()):.0f} % of the peg's points below the hole part's top "
+                f"are not in its cavity (e.g. at {_fmt_mm(p)}, no hole part towards {name}); "
+                "are the files in the order PEG_MESH HOLE_MESH, in the assembled pose?"
+            )
+    depth, where = _deepest_inside(hole, peg_pts)
+    label = "the peg reaches into the hole part"
+    if depth <= tol:
+        depth, where = _deepest_inside(peg, _surface_points(hole, CHECK_SAMPLES, seed=3))
+        label = "the hole part reaches into the peg"
+    if depth > tol:
+        vol = _interference_volume_mm3(peg, hole)
+        vol_text = "" if vol is None else f", interference volume {vol:.4g} mm^3"
+        raise UserInputError(
+            f"not a peg-hole (no interference): {label} up to {depth / MM:.4g} mm deep at "
+            f"{_fmt_mm(where)}{vol_text} (tolerance {INTERFERENCE_TOL_MM:g} mm): the peg "
+            "must be smaller than its hole"
+        )
+    up = np.tile([0.0, 0.0, 1.0], (len(peg_pts), 1))
+    locs, idx, _ = hole.ray.intersects_location(peg_pts, up, multiple_hits=True)
+    if len(idx):
+        rise = locs[:, 2] - peg_pts[idx, 2]
+        blocked = rise > 2 * tol  # a hit at the start point: the parts touch there
+        if blocked.any():
+            k = int(np.argmin(np.where(blocked, rise, np.inf)))
+            raise UserInputError(
+                "not a peg-hole (extractable along +z): the hole part lies "
+                f"{rise[k] / MM:.4g} mm straight above the peg's point at "
+                f"{_fmt_mm(peg_pts[idx[k]])} (an undercut): the peg cannot be pulled out "
+                "along +z"
+            )
+
+
+def estimate_output_bytes(params: CoacdParams, n_hulls: tuple[int, int] | None = None) -> int:
+    """An upper estimate of what ``decompose`` writes (MJCF + report.json), bytes: per hull
+    its vertices as text, per peg-hull x hole-hull pair one ``<pair>`` line. Before CoACD the
+    hull counts are the cap (or 64 per part when uncapped)."""
+    if n_hulls is None:
+        n = params.max_convex_hull if params.max_convex_hull > 0 else 64
+        n_hulls = (n, n)
+    per_hull = params.max_ch_vertex * 3 * 26 + 400
+    pairs = n_hulls[0] * n_hulls[1] * 300
+    return (n_hulls[0] + n_hulls[1]) * per_hull + pairs + 64 * 1024
+
+
 @dataclass
 class DecomposeReport:
     """What ``peghole models decompose`` measured and wrote."""
@@ -235,11 +376,29 @@ def write_user_mjcf(
     peg_mass_kg: float | None = None,
     sim=None,
 ) -> tuple[Path, float | None]:
-    """Free peg + fixed hole block MJCF with every hull pair as a contact pair.
+    """Free peg + fixed hole block MJCF with every hull pair as a contact pair, written
+    atomically to ``out/user_peghole.xml``.
 
     Returns the XML path and the hole depth (m) if a hole bottom was found under the peg.
     The keyframe ``mouth`` lifts the peg so that its tip is at the top of the hole block.
     """
+    from peghole_mjx import fileio
+
+    xml, depth = user_mjcf(peg, hole, peg_hulls, hole_hulls, friction, peg_mass_kg, sim)
+    out.mkdir(parents=True, exist_ok=True)
+    return fileio.write_text(out / "user_peghole.xml", xml), depth
+
+
+def user_mjcf(
+    peg,
+    hole,
+    peg_hulls: list[np.ndarray],
+    hole_hulls: list[np.ndarray],
+    friction: float,
+    peg_mass_kg: float | None = None,
+    sim=None,
+) -> tuple[str, float | None]:
+    """The MJCF text of :func:`write_user_mjcf` (compiled once to check it) and the depth."""
     import mujoco
 
     from peghole_mjx.geometry.mjcf import SimOptions, _set_options
@@ -307,12 +466,12 @@ def write_user_mjcf(
         depth = float(hole.bounds[1, 2] - bottom[2])
     lift = hole.bounds[1, 2] - tip[2]
     s.add_key(name="mouth", qpos=[0, 0, lift, 1, 0, 0, 0])
-    s.compile()
-    from peghole_mjx import fileio
-
-    out.mkdir(parents=True, exist_ok=True)
-    path = fileio.write_text(out / "user_peghole.xml", s.to_xml())
-    return path, depth
+    try:
+        s.compile()
+    except ValueError as exc:  # e.g. a hull too thin for MuJoCo's mesh inertia
+        first = str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
+        raise UserInputError(f"MuJoCo cannot build the decomposed parts: {first}") from None
+    return s.to_xml(), depth
 
 
 def _hull_volume(vertices: np.ndarray) -> float:
@@ -344,6 +503,12 @@ def decompose_parts(
         clearance_mm = check("clearance_mm", clearance_mm)
     peg = load_mesh(peg_path, units)
     hole = load_mesh(hole_path, units)
+    check_assembly(peg, hole, units)  # a peg in its hole, before any decomposition or MJCF
+    from peghole_mjx import fileio
+
+    out = Path(out_dir)
+    fileio.check_out_dir(out)
+    fileio.check_room(out, estimate_output_bytes(params))
     if clearance_mm is None:
         clearance_mm = estimate_radial_clearance_mm(peg, hole)
     if clearance_mm <= 0:
@@ -366,8 +531,8 @@ def decompose_parts(
             )
             msgs.append(msg)
             warnings.warn(msg, DecompositionWarning, stacklevel=2)
-    out = Path(out_dir)
-    path, depth = write_user_mjcf(peg, hole, peg_hulls, hole_hulls, out, friction, peg_mass_kg)
+    xml, depth = user_mjcf(peg, hole, peg_hulls, hole_hulls, friction, peg_mass_kg)
+    path = out / "user_peghole.xml"
     report = DecomposeReport(
         dev_peg,
         dev_hole,
@@ -377,9 +542,9 @@ def decompose_parts(
         str(path),
         None if depth is None else depth / MM,
     )
-    from peghole_mjx import fileio
-
-    fileio.write_text(out / "report.json", dumps(report.as_dict(), indent=2))
+    files = {path: xml, out / "report.json": dumps(report.as_dict(), indent=2)}
+    fileio.check_room(out, sum(len(v.encode()) for v in files.values()) + (1 << 20))
+    fileio.write_many(files)  # both files or neither
     return report
 
 

@@ -286,6 +286,22 @@ def block_top_z(spec: PegHoleSpec) -> float:
     return (spec.hole_depth_mm + spec.floor_mm) * MM
 
 
+def check_edges_fit(spec: PegHoleSpec, rep: str) -> None:
+    """The rect ``edges`` representation needs a peg wider than four edge-capsule radii
+    (``edges.check_radius``); a one-line :class:`UserInputError` otherwise."""
+    if not (isinstance(spec, RectSpec) and rep == "edges"):
+        return
+    try:
+        edges.check_radius(spec, edges.EDGE_RADIUS_M)
+    except ValueError:
+        lim = 4 * edges.EDGE_RADIUS_M / MM
+        raise UserInputError(
+            f"the rect peg's sides ({spec.peg_w_mm:g} x {spec.peg_v_mm:g} mm) must exceed "
+            f"{lim:g} mm for the edges representation (its {edges.EDGE_RADIUS_M / MM:g} mm "
+            "edge capsules would meet); use --representation box"
+        ) from None
+
+
 def build_scene(
     spec: PegHoleSpec,
     *,
@@ -312,6 +328,8 @@ def build_scene(
     """
     sim = sim or SimOptions()
     rep = resolve_representation(spec, representation)
+    if not peg_single_hull:
+        check_edges_fit(spec, rep)
     cap = contact_cap_for(spec, rep, contact_cap)
     top_z = block_top_z(spec)
     if robot:
@@ -433,15 +451,25 @@ def write_scene(
     contact_cap: int | None = None,
 ) -> Path:
     """Write the scene as a self-contained MJCF (meshes inline) and return its path."""
+    from peghole_mjx import fileio
+
     out = Path(out_dir)
-    out.mkdir(parents=True, exist_ok=True)
     s = build_scene(
         spec, robot=robot, sim=sim, representation=representation, contact_cap=contact_cap
     )
     s.compile()
-    path = out / name
-    path.write_text(s.to_xml())
-    return path
+    xml = s.to_xml()
+    fileio.check_out_dir(out)
+    fileio.check_room(out, len(xml.encode()) + ROOM_MARGIN_BYTES)
+    return fileio.write_text(out / name, xml)
+
+
+#: what ``models build`` writes, an upper estimate checked against the free disk before the
+#: work (a scene and its free peg are tens of kB; the exact size is checked again before
+#: writing)
+SCENES_BYTES = 1 << 20
+#: room left over beside an output (the file system's own blocks, a temporary copy)
+ROOM_MARGIN_BYTES = 1 << 20
 
 
 def with_sim(sim: SimOptions, **changes) -> SimOptions:
@@ -465,7 +493,10 @@ def write_scenes(
 
     out = Path(out)
     rep = resolve_representation(spec, representation)
+    check_edges_fit(spec, rep)
+    contact_cap_for(spec, rep, contact_cap)
     fileio.check_out_dir(out)
+    fileio.check_room(out, SCENES_BYTES + ROOM_MARGIN_BYTES)  # before the IK and compiles
     xml = {}
     for name, robot in (("scene.xml", True), ("free_peg.xml", False)):
         try:
@@ -477,5 +508,6 @@ def write_scenes(
                 f"size within the robot's reach"
             ) from None
         xml[out / name] = s.to_xml()
+    fileio.check_room(out, sum(len(x.encode()) for x in xml.values()) + ROOM_MARGIN_BYTES)
     fileio.write_many(xml)
     return out / "scene.xml", out / "free_peg.xml", rep

@@ -112,20 +112,41 @@ PegHoleSpec = RectSpec | DualSpec
 
 
 def _require_positive(values: dict[str, float]) -> None:
-    from peghole_mjx.validation import RANGES  # the robot's reach and mass limits
+    """Every size is a real number (not a boolean) within ``RANGES["size_mm"]`` (the smallest
+    part MuJoCo builds, the robot's reach), every mass within ``RANGES["mass_kg"]``."""
+    from peghole_mjx.validation import RANGES  # the size, reach and mass limits
 
     for name, v in values.items():
-        if not (isinstance(v, int | float) and math.isfinite(v)):
+        if isinstance(v, bool) or not isinstance(v, int | float):
+            raise InfeasibleGeometryError(
+                "a number", f"{name} must be a number, got {v!r} ({type(v).__name__})", {}
+            )
+        if not math.isfinite(v):
             raise InfeasibleGeometryError("finite size", f"{name} must be a finite number", {})
         if v <= 0:
             raise InfeasibleGeometryError("positive size", f"{name} must be > 0", {name: v})
         limit = RANGES["mass_kg" if name.endswith("_kg") else "size_mm"]
+        if limit.lo is not None and v < limit.lo:
+            raise InfeasibleGeometryError(
+                "minimum size",
+                f"{name} is below {limit.lo:g} mm" + (f" ({limit.why_lo})" if limit.why_lo else ""),
+                {name: v},
+            )
         if v > limit.hi:
             raise InfeasibleGeometryError(
                 "within reach" if name.endswith("_mm") else "mass limit",
                 f"{name} exceeds {limit.hi:g}" + (f" ({limit.why_hi})" if limit.why_hi else ""),
                 {name: v},
             )
+
+
+def _pair_of(name: str, value) -> tuple[float, float]:
+    """``value`` as a pair (two radii); a one-line error for anything else."""
+    if not isinstance(value, tuple | list) or len(value) != 2:
+        raise InfeasibleGeometryError(
+            "a pair", f"{name} must be two numbers (one per peg or hole), got {value!r}", {}
+        )
+    return value[0], value[1]
 
 
 def check_rect_extractable(hole_w: float, hole_v: float, peg_w: float, peg_v: float) -> None:
@@ -188,7 +209,12 @@ def validate(spec: PegHoleSpec) -> PegHoleSpec:
         )
         check_rect_extractable(spec.hole_w_mm, spec.hole_v_mm, spec.peg_w_mm, spec.peg_v_mm)
     elif isinstance(spec, DualSpec):
-        (R1, R2), (r1, r2) = spec.hole_radii_mm, spec.peg_radii_mm
+        (R1, R2) = _pair_of("hole_radii_mm", spec.hole_radii_mm)
+        (r1, r2) = _pair_of("peg_radii_mm", spec.peg_radii_mm)
+        if isinstance(spec.n_sides, bool) or not isinstance(spec.n_sides, int):
+            raise InfeasibleGeometryError(
+                "n_sides >= 8 and even", f"n_sides must be an integer, got {spec.n_sides!r}", {}
+            )
         _require_positive(
             {
                 "hole_radius_1_mm": R1,
@@ -221,7 +247,11 @@ def validate(spec: PegHoleSpec) -> PegHoleSpec:
             )
     else:
         raise TypeError(f"not a peg-hole spec: {type(spec).__name__}")
-    if not (isinstance(spec.friction, int | float) and 0.0 <= spec.friction <= 2.0):
+    if (
+        isinstance(spec.friction, bool)
+        or not isinstance(spec.friction, int | float)
+        or not 0.0 <= spec.friction <= 2.0
+    ):
         raise InfeasibleGeometryError(
             "0 <= mu <= 2", "friction out of range", {"mu": spec.friction}
         )

@@ -220,20 +220,35 @@ def check_meta(meta: Any, where: str) -> dict[str, Any]:
             raise CorruptFileError(f"{where}: {what}")
 
     need(isinstance(meta, dict), "not a JSON object")
+    versions = " and ".join(map(str, READABLE_VERSIONS))
     version = meta.get("format_version")
     need(
-        version in READABLE_VERSIONS and isinstance(version, int),
-        f"format_version {version!r} is unknown: this peghole_mjx reads "
-        f"{' and '.join(map(str, READABLE_VERSIONS))}",
+        type(version) is int,  # not true (== 1 in Python), 2.0 or "2"
+        f"format_version must be an integer ({' or '.join(map(str, READABLE_VERSIONS))}), "
+        f"got {_short(version)}",
+    )
+    need(
+        version in READABLE_VERSIONS,
+        f"format_version {version!r} is unknown: this peghole_mjx reads {versions}",
     )
     env = meta.get("env")
-    need(env in ALL_ENVS, f"env {env!r} is not one of {list(ALL_ENVS)}")
-    trained_on = (meta.get("train_config") or {}).get("env", env)
+    need(isinstance(env, str) and env in ALL_ENVS, f"env {env!r} is not one of {list(ALL_ENVS)}")
+    train_config = meta.get("train_config")
+    need(
+        train_config is None or isinstance(train_config, dict),
+        f"train_config must be an object, got {_short(train_config)}",
+    )
+    trained_on = (train_config or {}).get("env", env)
     need(
         trained_on == env,
         f"env {env!r}, but the policy was trained on {trained_on!r} (relabelled policy)",
     )
     need(isinstance(meta.get("env_overrides", {}), dict), "env_overrides is not an object")
+    trained_over = (train_config or {}).get("env_overrides")
+    need(
+        trained_over is None or isinstance(trained_over, dict),
+        f"train_config.env_overrides must be an object, got {_short(trained_over)}",
+    )
     check_as_trained(meta, where)
     net = meta.get("network")
     need(isinstance(net, dict), "no network description ('network')")
@@ -253,6 +268,12 @@ def check_meta(meta: Any, where: str) -> dict[str, Any]:
         "network.normalize_observations must be true or false",
     )
     return meta
+
+
+def _short(value: Any, limit: int = 60) -> str:
+    """``value`` as JSON, cut to ``limit`` characters (for a one-line message)."""
+    text = json.dumps(value, default=repr)
+    return text if len(text) <= limit else text[: limit - 3] + "..."
 
 
 def check_as_trained(meta: dict[str, Any], where: str) -> None:
@@ -290,10 +311,14 @@ def load_policy(name: str | Path) -> PolicyBundle:
 
 
 def _read(path: Path) -> tuple[dict[str, Any], dict[str, np.ndarray]]:
-    """``policy.json`` (schema-checked) and the arrays of ``params.npz`` by tree path, in the
-    network's tree order (format 1 upgraded), each checked: finite numbers, expected shapes."""
+    """``policy.json`` (strict JSON, nesting limited, schema-checked) and the arrays of
+    ``params.npz`` by tree path, in the network's tree order (format 1 upgraded), each checked
+    against the network in ``policy.json``: name, shape, dtype, finite numbers, and a
+    normaliser consistent with ``normalize_observations``. All before anything is compiled."""
+    from peghole_mjx.validation import loads
+
     try:
-        meta = json.loads((path / "policy.json").read_text())
+        meta = loads((path / "policy.json").read_text())
     except (ValueError, UnicodeDecodeError) as exc:
         raise CorruptFileError(f"{path}/policy.json is not valid JSON ({exc})") from None
     check_meta(meta, f"{path}/policy.json")
@@ -307,19 +332,73 @@ def _read(path: Path) -> tuple[dict[str, Any], dict[str, np.ndarray]]:
         raise CorruptFileError(f"{path}/params.npz is unreadable ({exc})") from None
     if meta["format_version"] == 1:
         arrays = _upgrade_arrays(arrays, want, path)
-    problems = differences(
-        {k: np.shape(v) for k, v in arrays.items()}, {k: np.shape(v) for k, v in want.items()}
-    )
-    if problems:
-        raise CorruptFileError(
-            f"{path}/params.npz does not match the network in policy.json ({'; '.join(problems)})"
-        )
-    for k, x in arrays.items():
-        if not np.issubdtype(x.dtype, np.floating) and not np.issubdtype(x.dtype, np.integer):
-            raise CorruptFileError(f"{path}/params.npz: array {k} has dtype {x.dtype}")
-        if np.issubdtype(x.dtype, np.floating) and not np.all(np.isfinite(x)):
-            raise CorruptFileError(f"{path}/params.npz: array {k} holds NaN or infinity")
+    check_arrays(arrays, want, meta["network"], f"{path}/params.npz")
     return meta, {k: arrays[k] for k in want}
+
+
+def check_arrays(
+    arrays: dict[str, np.ndarray], want: dict[str, np.ndarray], network: dict, where: str
+) -> None:
+    """Refuse (:class:`CorruptFileError`, one line naming the array) parameters that are not
+    exactly the arrays of ``want`` (the network's template): a missing or unexpected name,
+    another shape (one line naming the array, its shape and the expected one) or dtype (int8
+    weights), NaN or infinity, or a normaliser that contradicts ``normalize_observations``."""
+    names = differences({k: None for k in arrays}, {k: None for k in want})
+    if names:
+        raise CorruptFileError(
+            f"{where} does not match the network in policy.json ({'; '.join(names)})"
+        )
+    net = (
+        f"observation_size {network['observation_size']}, action_size "
+        f"{network['action_size']}, hidden_layer_sizes {network['hidden_layer_sizes']}"
+    )
+    for k, w in want.items():
+        x = arrays[k]
+        if np.shape(x) != np.shape(w):
+            raise CorruptFileError(
+                f"{where}: array {k} has shape {tuple(np.shape(x))}, the network in "
+                f"policy.json ({net}) expects {tuple(np.shape(w))} (parameters of another "
+                "policy?)"
+            )
+        if not _dtype_fits(x.dtype, w.dtype):
+            raise CorruptFileError(f"{where}: array {k} has dtype {x.dtype}, expected {w.dtype}")
+        if np.issubdtype(x.dtype, np.floating) and not np.all(np.isfinite(x)):
+            raise CorruptFileError(f"{where}: array {k} holds NaN or infinity")
+    _check_normaliser(arrays, bool(network["normalize_observations"]), where)
+
+
+def _dtype_fits(have: np.dtype, want: np.dtype) -> bool:
+    """A saved dtype that holds the template's values: a 32- or 64-bit float for a float
+    (the scalar ``std_eps`` is saved as either), an integer for an integer (the count)."""
+    if np.issubdtype(want, np.floating):
+        return have in (np.dtype(np.float32), np.dtype(np.float64))
+    if np.issubdtype(want, np.integer):
+        return np.issubdtype(have, np.integer)
+    return have == want
+
+
+def _check_normaliser(arrays: dict[str, np.ndarray], normalize: bool, where: str) -> None:
+    """The observation normaliser (``0/...``) agrees with ``normalize_observations``: training
+    updates it only when normalising, so ``false`` comes with the initial state (count 0, mean
+    0, std 1), and ``true`` with positive standard deviations (an initial state too when no
+    observation was seen yet, which normalises nothing)."""
+    mean, std = arrays.get("0/mean"), arrays.get("0/std")
+    hi, lo = arrays.get("0/count/hi"), arrays.get("0/count/lo")
+    if mean is None or std is None or hi is None or lo is None:
+        return  # a layout without brax's running statistics: nothing to compare
+    count = (int(hi) << 32) | int(lo)
+    initial = not np.any(mean) and np.all(std == 1) and not np.any(arrays.get("0/summed_variance"))
+    if not normalize and (count or not initial):
+        raise CorruptFileError(
+            f"{where}: network.normalize_observations is false, but the normaliser holds the "
+            f"statistics of {count} observations (policy.json's flag changed after training?)"
+        )
+    if normalize and not np.all(std > 0):
+        raise CorruptFileError(f"{where}: the normaliser's 0/std holds values <= 0")
+    if normalize and count == 0 and not initial:
+        raise CorruptFileError(
+            f"{where}: the normaliser holds statistics but a count of 0 observations"
+        )
 
 
 def _upgrade_arrays(arrays: dict[str, Any], want: dict[str, Any], path: Path) -> dict[str, Any]:
@@ -328,13 +407,12 @@ def _upgrade_arrays(arrays: dict[str, Any], want: dict[str, Any], path: Path) ->
     names = [f"leaf_{i:04d}" for i in range(len(arrays))]
     if sorted(arrays) != names:
         raise CorruptFileError(f"{path}/params.npz holds unexpected arrays")
-    if len(names) != len(want) or any(
-        np.shape(arrays[n]) != np.shape(w) for n, w in zip(names, want.values(), strict=True)
-    ):
+    if len(names) != len(want):
         raise CorruptFileError(
             f"{path}/params.npz does not match the network in policy.json "
             f"({len(names)} arrays vs {len(want)} expected)"
         )
+    # shapes and dtypes are checked by name afterwards (check_arrays)
     return {k: arrays[n] for k, n in zip(want, names, strict=True)}
 
 
@@ -364,6 +442,7 @@ def upgrade_policy(path: str | Path) -> bool:
 __all__ = [
     "PRETRAINED",
     "PolicyBundle",
+    "check_arrays",
     "check_as_trained",
     "check_meta",
     "init_params",

@@ -249,11 +249,17 @@ def _fsync_tree(folder: Path) -> None:
 CORRUPTION = (CorruptFileError, zipfile.BadZipFile, EOFError, json.JSONDecodeError)
 
 
-def newest_valid(ckpt_dir: Path, load: Callable[[Path], Any]) -> tuple[Path, Any] | None:
+def newest_valid(
+    ckpt_dir: Path,
+    load: Callable[[Path], Any],
+    need: tuple[str, ...] = (*POLICY_FILES, *STATE_FILES),
+) -> tuple[Path, Any] | None:
     """``(path, load(path))`` of the newest checkpoint with a state that verifies and loads,
-    or None. Each newer one that fails (:data:`CORRUPTION`, or a ValueError of ``np.load``)
-    is set aside (:func:`set_aside`) with a warning; other errors (e.g. a checkpoint that does
-    not fit the run's config) are raised."""
+    or None. ``need``: the files (or folders) the run's checkpoints hold, verified against the
+    manifest (a single run: its policy files and the state; a multi-seed run: ``seed_K/``
+    and the state). Each newer one that fails (:data:`CORRUPTION`, or a ValueError of
+    ``np.load``) is set aside (:func:`set_aside`) with a warning; other errors (e.g. a
+    checkpoint that does not fit the run's config) are raised."""
     dirs = checkpoint_dirs(ckpt_dir)
     full = [p for p in dirs if has_state(p)]
     legacy = [p for p in dirs if (p / LEGACY_STATE).exists()]
@@ -264,7 +270,7 @@ def newest_valid(ckpt_dir: Path, load: Callable[[Path], Any]) -> tuple[Path, Any
         )
     for path in reversed(full):
         try:
-            verify(path, (*POLICY_FILES, *STATE_FILES))
+            verify(path, need)
             loaded = load(path)
         except (*CORRUPTION, ValueError, KeyError) as exc:
             if isinstance(exc, UserInputError) and not isinstance(exc, CorruptFileError):

@@ -199,9 +199,13 @@ def fresh_run_config(args: argparse.Namespace):
     """The config of a new run in ``--out`` (refused when ``--out`` already holds one)."""
     if not args.env or not args.out:
         raise UserInputError("--env and --out are required (or --resume DIR)")
+    from peghole_mjx.training.run import failed_start
+
     cfg = train_config_from_args(args)
     fileio.check_out_dir(args.out)
-    if (args.out / "run.json").exists():
+    # a run that stopped before its first evaluation does not block its --out: the new run
+    # replaces it, holding the run's lock (TrainingRun.prepare, SeedsRun.prepare)
+    if (args.out / "run.json").exists() and not failed_start(args.out):
         raise UserInputError(
             f"{args.out} already holds a training run: use --resume {args.out} or a new --out"
         )
@@ -231,6 +235,7 @@ def cmd_train(args: argparse.Namespace) -> int:
                 f"--resume: {args.resume / 'run.json'} not found (not a training run directory)"
             )
         with RunLock(args.resume) as lock:  # before anything of the run is read or written
+            fileio.check_out_dir(args.resume, "--resume")
             run = TrainingRun.resume(
                 args.resume,
                 progress=progress,
@@ -279,6 +284,7 @@ def _train_seeds(args: argparse.Namespace, progress: bool) -> int:
     if args.resume:
         if args.env or args.overrides or args.seeds is not None:
             raise UserInputError("--resume takes the run's own config: drop --env, --set, --seeds")
+        fileio.check_out_dir(args.resume, "--resume")
         run = SeedsRun.resume(args.resume, progress=progress)
         summary = run.run(resume=True)
     else:
@@ -310,18 +316,13 @@ def cmd_evaluate(args: argparse.Namespace) -> int:
                 f"--out {args.out}: a cross evaluation is not written into a policy folder "
                 "(its evaluation.json is the evaluation as trained)"
             )
+    # every policy, its env and the outputs are checked before the first evaluation
+    bundles = [_checked_policy(c, args, over) for c in args.checkpoint]
+    _check_evaluate_outputs(args, bundles)
     baselines: dict = {}
     results = []
-    for checkpoint in args.checkpoint:
-        policy = checkpoint
-        if args.env:
-            from peghole_mjx.policies import load_policy
-
-            policy = load_policy(checkpoint)  # loaded once: evaluate takes the bundle
-            if policy.env_name != args.env:
-                raise UserInputError(
-                    f"{checkpoint}: a policy for {policy.env_name}, not for {args.env}"
-                )
+    for checkpoint, bundle in zip(args.checkpoint, bundles, strict=True):
+        policy = bundle if args.env else checkpoint  # (the bundle: loaded once)
         res = evaluate(
             policy,
             args.episodes,
@@ -343,6 +344,34 @@ def cmd_evaluate(args: argparse.Namespace) -> int:
     if args.out:
         fileio.write_text(args.out, dumps(res, indent=2) + "\n")
     return 0
+
+
+def _checked_policy(checkpoint: str, args: argparse.Namespace, over: dict):
+    """The policy ``checkpoint`` loaded (its files checked: :func:`load_policy`) and the env
+    it will be evaluated in checked against ``--env`` and its training env (``--cross``)."""
+    from peghole_mjx.policies import load_policy
+    from peghole_mjx.training.evaluate import check_requested_env, requested_config
+
+    bundle = load_policy(checkpoint)
+    if args.env and bundle.env_name != args.env:
+        raise UserInputError(f"{checkpoint}: a policy for {bundle.env_name}, not for {args.env}")
+    check_requested_env(bundle, requested_config(bundle, over or None), args.cross)
+    return bundle
+
+
+def _check_evaluate_outputs(args: argparse.Namespace, bundles: list) -> None:
+    """``--parts`` a writable folder whose baseline slices are of these episodes, and room on
+    disk for what the evaluation writes (estimated), before the first evaluation."""
+    from peghole_mjx.training.evaluate import check_parts_keys, output_bytes
+
+    if args.parts:
+        fileio.check_out_dir(args.parts, "--parts")
+        batch = args.batch or args.episodes
+        check_parts_keys(args.parts, [b.env_name for b in bundles], args.seed, batch)
+    need = output_bytes(len(bundles), args.episodes, args.batch, bool(args.parts), bool(args.out))
+    for path, what in ((args.parts, "--parts"), (args.out, "--out")):
+        if path:
+            fileio.check_room(path, need, what)
 
 
 def _env_sets(args: argparse.Namespace) -> dict:
@@ -396,13 +425,22 @@ def _print_evaluation(res: dict) -> None:
     )
 
 
-def cmd_compare(args: argparse.Namespace) -> int:
-    from peghole_mjx.training.plots import plot_curves
+#: bytes ``compare`` may write (a 11 x 7.5 inch figure at 110 dpi, any format), refused below
+COMPARE_OUT_BYTES = 8 << 20
 
-    for r in args.runs:
+
+def cmd_compare(args: argparse.Namespace) -> int:
+    from peghole_mjx.training.config import read_run_record
+    from peghole_mjx.training.plots import image_format, plot_curves, read_metrics
+
+    image_format(args.out)  # a suffix matplotlib cannot write is refused before any work
+    fileio.check_out_file(args.out)
+    fileio.check_room(args.out.parent if str(args.out.parent) else ".", COMPARE_OUT_BYTES)
+    for r in args.runs:  # every run read and checked before the figure is drawn
         if not (r / "metrics.csv").exists():
             raise UserInputError(f"{r}: no metrics.csv (not a training run directory)")
-    fileio.check_out_file(args.out)
+        read_metrics(r)
+        read_run_record(r, what=str(r), full=False)
     out = plot_curves(args.runs, args.out, title="RL vs RL + compliance strategy")
     print(out, file=sys.stdout)
     return 0

@@ -81,11 +81,11 @@ class TrainConfig:
     @classmethod
     def from_dict(cls, d: dict[str, Any]) -> TrainConfig:
         names = {f.name for f in fields(cls)}
-        unknown = sorted(set(d) - names)
-        if unknown:
-            raise UserInputError(f"unknown training config keys {unknown}; known: {sorted(names)}")
         if not isinstance(d, dict):
             raise UserInputError(f"training config must be a mapping, got {type(d).__name__}")
+        unknown = sorted(str(k) for k in set(d) - names)
+        if unknown:
+            raise UserInputError(f"unknown training config keys {unknown}; known: {sorted(names)}")
         required = {
             f.name for f in fields(cls) if f.default is MISSING and f.default_factory is MISSING
         }
@@ -175,6 +175,15 @@ def _label(name: str) -> str:
     return f"training config: {name}"
 
 
+#: config keys that ``--set`` cannot change: each is chosen another way (the env and the
+#: profile pick the JSON file and its sizes; env config entries are set one by one)
+CHOSEN_BY_FLAG = {
+    "env": "the env is chosen with --env NAME (its config file gives the other defaults)",
+    "profile": "the profile is chosen with --profile full|cpu|quick (or --quick)",
+    "env_overrides": "set env config entries one by one with --set env.KEY=VALUE",
+}
+
+
 def load_train_config(
     env: str,
     profile: str = "full",
@@ -197,6 +206,8 @@ def load_train_config(
     env_over = {**d.pop("env_overrides", {}), **prof.pop("env_overrides", {})}
     d.update(prof)
     for key, value in (overrides or {}).items():
+        if key in CHOSEN_BY_FLAG:  # would be silently replaced below: refused instead
+            raise UserInputError(f"--set {key}={value}: {CHOSEN_BY_FLAG[key]}")
         if key.startswith("env."):
             env_over[key[4:]] = value
         else:
@@ -221,3 +232,57 @@ def default(name: str) -> Any:
     """The default of :class:`TrainConfig` field ``name`` (what the CLI shows and uses)."""
     f = {f.name: f for f in fields(TrainConfig)}[name]
     return f.default_factory() if f.default is MISSING else f.default
+
+
+#: the largest number of seeds a ``--seeds`` run records (``run.json`` key ``seeds``)
+MAX_SEEDS = 4096
+
+
+def read_run_record(out: str | Path, what: str = "--resume", full: bool = True):
+    """``(meta, cfg)``: a training run's ``run.json``, schema-checked, and its config.
+
+    Strict JSON (no bare NaN, nesting at most ``validation.MAX_JSON_DEPTH``), an object with a
+    ``config`` object; ``seeds`` (multi-seed runs) a whole number >= 1; ``resumed_with`` a
+    list of objects. ``full``: the config is a complete :class:`TrainConfig` (``cfg``); else
+    only ``env`` (a name) and ``env_overrides`` (a mapping) are checked and ``cfg`` is None
+    (for reading older or partial records, e.g. to label curves). A missing file is a
+    :class:`UserInputError`, a damaged one a :class:`CorruptFileError`, in one line naming it.
+    """
+    from peghole_mjx.errors import CorruptFileError
+    from peghole_mjx.validation import loads
+
+    path = Path(out) / "run.json"
+    if not path.is_file():
+        raise UserInputError(f"{what}: {path} not found (not a training run directory)")
+    try:
+        meta = loads(path.read_text())
+    except (OSError, UnicodeDecodeError, ValueError) as exc:
+        raise CorruptFileError(f"{path} is not a readable run record ({exc})") from None
+
+    def bad(why: str) -> CorruptFileError:
+        return CorruptFileError(f"{path} is not a readable run record ({why})")
+
+    if not isinstance(meta, dict):
+        raise bad(f"a JSON object expected, got {type(meta).__name__}")
+    config = meta.get("config")
+    if not isinstance(config, dict):
+        raise bad(f"'config' must be an object, got {type(config).__name__}")
+    seeds = meta.get("seeds", 1)
+    if isinstance(seeds, bool) or not isinstance(seeds, int) or not 1 <= seeds <= MAX_SEEDS:
+        raise bad(f"'seeds' must be a whole number in [1, {MAX_SEEDS}], got {seeds!r}")
+    resumed = meta.get("resumed_with", [])
+    if not isinstance(resumed, list) or not all(isinstance(r, dict) for r in resumed):
+        raise bad(f"'resumed_with' must be a list of objects, got {resumed!r:.60}")
+    if not full:
+        if not isinstance(config.get("env"), str):
+            raise bad(f"config.env must be an env name, got {config.get('env')!r:.60}")
+        if not isinstance(config.get("env_overrides", {}), dict):
+            raise bad("config.env_overrides must be an object")
+        return meta, None
+    try:
+        cfg = TrainConfig.from_dict(config)
+    except UserInputError as exc:
+        raise bad(str(exc)) from None
+    except TypeError as exc:  # a field of the wrong kind that validate() cannot name
+        raise bad(f"training config: {exc}") from None
+    return meta, cfg

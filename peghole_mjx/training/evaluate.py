@@ -10,6 +10,11 @@ from __future__ import annotations
 
 import hashlib
 import json
+import os
+import re
+import sys
+import zipfile
+import zlib
 from pathlib import Path
 from typing import Any
 
@@ -17,7 +22,7 @@ import jax
 import numpy as np
 
 from peghole_mjx.envs.rollout import SCRIPTED_SPEED_M_S, rollout, scripted_policy
-from peghole_mjx.errors import UserInputError
+from peghole_mjx.errors import CorruptFileError, UserInputError
 from peghole_mjx.policies import PolicyBundle, load_policy
 
 #: the thesis's headline RL numbers (Sec 4.3.2, 4.4; seed_parameters.md R3-R5)
@@ -65,11 +70,28 @@ def _config_key(env, ignored=()) -> str:
     return json.dumps(cfg, sort_keys=True)
 
 
+def _read_key(key_file: Path) -> dict[str, Any]:
+    """A slice folder's ``key.json`` (strict JSON, an object), else one line naming it."""
+    from peghole_mjx.validation import loads
+
+    try:
+        old = loads(key_file.read_text())
+    except (ValueError, UnicodeDecodeError) as exc:
+        raise CorruptFileError(
+            f"{key_file} is damaged ({exc}): delete its folder to run its slices again"
+        ) from None
+    if not isinstance(old, dict):
+        raise CorruptFileError(
+            f"{key_file} is not a JSON object: delete its folder to run its slices again"
+        )
+    return old
+
+
 def _keyed_dir(root: Path, key: dict[str, Any]) -> Path:
     """``root`` with its ``key.json``; raises if the folder holds another evaluation's slices."""
     key_file = root / "key.json"
     if key_file.exists():
-        old = json.loads(key_file.read_text())
+        old = _read_key(key_file)
         diff = sorted(k for k in key.keys() | old.keys() if old.get(k) != key.get(k))
         if diff:
             raise UserInputError(
@@ -82,6 +104,97 @@ def _keyed_dir(root: Path, key: dict[str, Any]) -> Path:
 
         fileio.write_text(key_file, json.dumps(key, indent=2) + "\n")
     return root
+
+
+#: a slice file of :func:`peghole_mjx.envs.rollout.rollout`: first episode and episode count
+SLICE_NAME = re.compile(r"episodes_(\d{7})_(\d{7})\.npz")
+#: suffix of a slice set aside as unusable (kept for inspection; its episodes are run again)
+SET_ASIDE = ".damaged"
+
+
+def slice_problem(path: Path) -> str | None:
+    """None if the slice file ``path`` holds exactly the episode records of its episodes (one
+    finite-size float array per :data:`EPISODE_RECORD` key, of the length its name says),
+    else what is wrong with it (random bytes, pickled data, truncation, other arrays)."""
+    from peghole_mjx.envs.metrics import EPISODE_RECORD
+
+    m = SLICE_NAME.fullmatch(path.name)
+    n = int(m.group(2)) if m else None
+    try:
+        with np.load(path, allow_pickle=False) as z:
+            arrays = {k: z[k] for k in z.files}
+    except (zipfile.BadZipFile, EOFError, ValueError, OSError, zlib.error) as exc:
+        if isinstance(exc, FileNotFoundError | PermissionError):
+            raise
+        return f"unreadable: {' '.join(str(exc).split()) or type(exc).__name__}"
+    if set(arrays) != set(EPISODE_RECORD):
+        return "not the episode records of this version"
+    for k, x in arrays.items():
+        if not np.issubdtype(x.dtype, np.floating) or x.shape != (n,):
+            return f"array {k} has shape {x.shape} and dtype {x.dtype}, expected ({n},) floats"
+    return None
+
+
+def check_slices(folder: Path | None) -> list[Path]:
+    """Set aside every unusable slice of ``folder`` (renamed ``NAME.npz.damaged``, with a
+    one-line warning naming it), so that the rollout runs its episodes again instead of
+    failing on it; returns the set-aside paths. Done before any simulation."""
+    if folder is None or not folder.is_dir():
+        return []
+    moved = []
+    for path in sorted(folder.iterdir()):
+        if not SLICE_NAME.fullmatch(path.name) or not path.is_file():
+            continue
+        why = slice_problem(path)
+        if why is None:
+            continue
+        aside = path.with_name(path.name + SET_ASIDE)
+        os.replace(path, aside)
+        print(
+            f"peghole: warning: {path} is damaged ({why}); set aside as {aside.name}, its "
+            "episodes are run again",
+            file=sys.stderr,
+            flush=True,
+        )
+        moved.append(aside)
+    return moved
+
+
+def output_bytes(n_policies: int, episodes: int, batch: int | None, parts: bool, out: bool) -> int:
+    """A generous estimate of what ``peghole evaluate`` writes: the ``--out`` JSON and, with
+    ``--parts``, each policy's and baseline's slices (one float64 per record key per episode,
+    plus the npz headers of each slice) and key files."""
+    from peghole_mjx.envs.metrics import EPISODE_RECORD
+
+    total = (8192 * n_policies + 4096) if out else 0
+    if parts:
+        slices = -(-episodes // max(1, min(batch or episodes, episodes)))
+        per_folder = len(EPISODE_RECORD) * (8 * episodes + 512 * slices) + 4096
+        total += (n_policies + 1) * per_folder
+    return 2 * total  # margin: the temporary copy beside each file while it is written
+
+
+def check_parts_keys(parts_dir: str | Path, env_names: list[str], seed: int, batch: int) -> None:
+    """Before the first evaluation: the baseline slices of ``parts_dir`` (shared by every
+    policy of a command) are of these episodes. A second env, seed or batch is refused here,
+    not after the first policy's evaluation (:func:`_parts_dirs` checks the full key)."""
+    envs = sorted(set(env_names))
+    if len(envs) > 1:
+        raise UserInputError(
+            f"--parts {parts_dir}: one folder holds the baseline of one env, and these policies "
+            f"are for {' and '.join(envs)}: evaluate them with separate --parts folders"
+        )
+    key_file = Path(parts_dir) / "baseline" / "key.json"
+    if not key_file.exists():
+        return
+    old = _read_key(key_file)
+    want = {"env": envs[0], "seed": seed, "batch": batch, "speed_m_s": SCRIPTED_SPEED_M_S}
+    diff = sorted(k for k in want if old.get(k) != want[k])
+    if diff:
+        raise UserInputError(
+            f"{key_file.parent} holds the slices of another evaluation (differs in "
+            f"{', '.join(diff)}); choose another --parts folder or delete it"
+        )
 
 
 def params_sha256(params) -> str:
@@ -204,6 +317,8 @@ def evaluate(
         diff = check_requested_env(bundle, requested_config(bundle, env_overrides), cross)
         env = bundle.make_env(env_overrides)
     parts = _parts_dirs(parts_dir, bundle, env, seed, batch or episodes)
+    for folder in parts:  # before any simulation: an unusable slice is set aside, run again
+        check_slices(folder)
     kw = dict(seed=seed, progress=progress, batch=batch)
     res_p = rollout(
         env, bundle.policy_fn(), episodes, params=bundle.params, parts_dir=parts[0], **kw

@@ -87,8 +87,8 @@ class RunLock:
     def acquire(self) -> RunLock:
         self.out.mkdir(parents=True, exist_ok=True)
         tmp = self.out / f".{LOCK_NAME}.{os.getpid()}"
-        tmp.write_text(json.dumps(self._record()) + "\n")
         try:
+            self._write_record(tmp)
             for _ in range(3):
                 try:
                     os.link(tmp, self.path)  # atomic: fails if the lock exists
@@ -118,6 +118,21 @@ class RunLock:
         finally:
             with contextlib.suppress(OSError):
                 tmp.unlink()
+
+    def _write_record(self, tmp: Path) -> None:
+        """Write the lock record to ``tmp`` and flush it to disk; a failure (a full disk, a
+        read-only folder) is one line naming the lock file (``tmp`` is removed by the
+        caller)."""
+        try:
+            with open(tmp, "w") as f:
+                f.write(json.dumps(self._record()) + "\n")
+                f.flush()
+                os.fsync(f.fileno())
+        except OSError as exc:
+            raise UserInputError(
+                f"cannot write the lock file {self.path} of the run in {self.out} "
+                f"({exc.strerror or exc})"
+            ) from None
 
     def release(self) -> None:
         if not self.held:

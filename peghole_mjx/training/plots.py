@@ -26,7 +26,9 @@ PANELS = (
 
 def run_label(run: Path) -> str:
     """``RL + CS`` or ``RL`` (compliance strategy on or off), with the env name."""
-    meta = json.loads((run / "run.json").read_text())
+    from peghole_mjx.training.config import read_run_record
+
+    meta, _ = read_run_record(run, what=str(run), full=False)
     cfg = meta["config"]
     cs = bool(cfg.get("env_overrides", {}).get("compliance_strategy", False))
     return f"{cfg['env']}: {'RL + CS' if cs else 'RL'}"
@@ -45,13 +47,73 @@ def _column(rows: list[dict[str, str]], key: str) -> tuple[np.ndarray, np.ndarra
     return np.array(xs), np.array(ys)
 
 
-def read_metrics(run: Path) -> list[dict[str, str]]:
-    """The rows of a training run's ``metrics.csv`` (one per evaluation), as strings."""
+def read_metrics(run: Path, torn_tail: bool = False) -> list[dict[str, str]]:
+    """The rows of a training run's ``metrics.csv`` (one per evaluation), as strings,
+    schema-checked (:func:`read_rows`)."""
     path = Path(run) / "metrics.csv"
     if not path.exists():
         raise UserInputError(f"{run}: no metrics.csv (not a training run directory)")
-    with path.open() as f:
-        return list(csv.DictReader(f))
+    return read_rows(path, ("step",), torn_tail=torn_tail)
+
+
+def read_rows(
+    path: Path, required: tuple[str, ...], torn_tail: bool = False
+) -> list[dict[str, str]]:
+    """The rows of a CSV log a run appends to (``metrics.csv``, ``history.csv``), checked:
+    UTF-8 text without NUL bytes, a header holding the ``required`` columns (no empty or
+    repeated names), every row with the header's number of fields and a whole-number ``step``
+    >= 0. A problem is a :class:`CorruptFileError` naming the file and the line.
+
+    ``torn_tail``: the last line as a kill or a power cut can leave it (no final newline, or
+    ending in NUL bytes) is dropped instead (``--resume``: that row is after the newest
+    checkpoint, whose work is redone)."""
+    from peghole_mjx.errors import CorruptFileError
+
+    path = Path(path)
+    try:
+        data = path.read_bytes()
+    except OSError as exc:
+        raise UserInputError(f"{path}: cannot read ({exc.strerror or exc})") from None
+    lines = data.split(b"\n")
+    tail = lines.pop()  # after the last newline: b"" when the file ends in one
+    if torn_tail:
+        if lines and b"\0" in lines[-1] and not tail.strip(b"\0"):
+            lines.pop()  # a row whose end a power cut replaced with NUL bytes
+    elif tail:
+        lines.append(tail)  # checked as any other line
+    for i, line in enumerate(lines, 1):
+        if b"\0" in line:
+            raise CorruptFileError(
+                f"{path} line {i}: NUL bytes (a damaged file, e.g. the tail a crash leaves)"
+            )
+    try:
+        text = [line.decode().rstrip("\r") for line in lines]
+    except UnicodeDecodeError as exc:
+        raise CorruptFileError(f"{path}: not UTF-8 text ({exc.reason})") from None
+    if not text or not text[0]:
+        raise CorruptFileError(f"{path} line 1: no header")
+    try:
+        parsed = [(i, f) for i, f in enumerate(csv.reader(text), 1) if f]  # blank lines skipped
+    except csv.Error as exc:
+        raise CorruptFileError(f"{path}: not CSV ({exc})") from None
+    header, body = parsed[0][1], parsed[1:]
+    if any(not h for h in header) or len(set(header)) != len(header):
+        raise CorruptFileError(f"{path} line 1: empty or repeated column names {header!r:.80}")
+    missing = [c for c in required if c not in header]
+    if missing:
+        raise CorruptFileError(f"{path} line 1: the header lacks the columns {missing}")
+    rows = []
+    for i, fields in body:
+        if len(fields) != len(header):
+            raise CorruptFileError(
+                f"{path} line {i}: {len(fields)} fields, the header has {len(header)}"
+            )
+        row = dict(zip(header, fields, strict=True))
+        step = row.get("step")
+        if step is not None and not (step.isascii() and step.isdigit()):
+            raise CorruptFileError(f"{path} line {i}: step must be a whole number, got {step!r}")
+        rows.append(row)
+    return rows
 
 
 def plot_curves(runs: list[Path], out: Path, title: str | None = None) -> Path:
@@ -93,6 +155,21 @@ def _finish(fig, axes, title: str, out: Path) -> Path:
     return _save(fig, out)
 
 
+def image_format(out: Path) -> str:
+    """The image format of ``out`` by its suffix (none: PNG); a suffix matplotlib cannot
+    write (``.txt``) is a :class:`UserInputError` naming the ones it can."""
+    from matplotlib.backend_bases import FigureCanvasBase
+
+    fmt = Path(out).suffix.lstrip(".").lower() or "png"
+    known = FigureCanvasBase.get_supported_filetypes()
+    if fmt not in known:
+        raise UserInputError(
+            f"--out {out}: .{fmt} is not an image format; use one of "
+            f"{', '.join('.' + k for k in sorted(known))}"
+        )
+    return fmt
+
+
 def _save(fig, out: Path) -> Path:
     """Write the figure atomically (a failed write keeps the old one) and close it."""
     import matplotlib.pyplot as plt
@@ -103,7 +180,7 @@ def _save(fig, out: Path) -> Path:
     out = Path(out)
     out.parent.mkdir(parents=True, exist_ok=True)
     with fileio.atomic_open(out, "wb") as fh:
-        fig.savefig(fh, dpi=110, format=out.suffix.lstrip(".").lower() or "png")
+        fig.savefig(fh, dpi=110, format=image_format(out))
     plt.close(fig)
     return out
 
@@ -124,8 +201,7 @@ def plot_seed_bands(runs: list[Path], out: Path, title: str | None = None) -> Pa
         path = run / "history.csv"
         if not path.exists():
             raise UserInputError(f"{run}: no history.csv (not a multi-seed training run)")
-        with path.open() as f:
-            rows = list(csv.DictReader(f))
+        rows = read_rows(path, ("seed", "step"))
         n_seeds = len({r["seed"] for r in rows})
         label = f"{run_label(run)}, {n_seeds} seeds"
         steps = sorted({int(r["step"]) for r in rows})

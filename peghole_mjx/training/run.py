@@ -27,6 +27,7 @@ validated and loaded; every file is written atomically (``peghole_mjx.fileio``).
 from __future__ import annotations
 
 import csv
+import itertools
 import json
 import math
 import os
@@ -38,16 +39,17 @@ from typing import Any
 import jax
 import numpy as np
 
-from peghole_mjx import fileio
+from peghole_mjx import fileio, memory
 from peghole_mjx.envs.metrics import EVAL_STATS, TOTAL_KEYS, TRAIN_STATS, summarize_totals
 from peghole_mjx.errors import CorruptFileError, UserInputError
 from peghole_mjx.policies import make_policy_fn, save_policy
 from peghole_mjx.provenance import provenance
 from peghole_mjx.training import checkpoints
-from peghole_mjx.training.config import TrainConfig
+from peghole_mjx.training.config import TrainConfig, read_run_record
 from peghole_mjx.training.lock import RunLock
 from peghole_mjx.training.plots import read_metrics
 from peghole_mjx.training.sac import SACTrainer
+from peghole_mjx.validation import dumps
 
 METRIC_COLUMNS = (
     "step",
@@ -88,6 +90,9 @@ class TrainingRun:
         self.carry = None
         self.env = load(cfg.env, config_overrides=cfg.env_overrides or None)
         self.trainer = SACTrainer(self.env, cfg)
+        # before anything is allocated, compiled or written
+        need_disk = check_resources(self.env, cfg, self.trainer.obs_size, self.trainer.act_size)
+        fileio.check_room(self.out, need_disk, "--out")
         self.policy_fn = make_policy_fn(self.trainer.network, deterministic=True)
         self.ckpt_dir = self.out / "checkpoints"
         #: the run's lock when the caller took it (else :meth:`run` takes it)
@@ -112,14 +117,10 @@ class TrainingRun:
         from peghole_mjx.validation import check
 
         out = Path(out)
-        path = out / "run.json"
-        if not path.exists():
-            raise UserInputError(f"--resume: {path} not found (not a training run directory)")
-        try:
-            meta = json.loads(path.read_text())
-            config = dict(meta["config"])
-        except (ValueError, KeyError, TypeError) as exc:
-            raise CorruptFileError(f"{path} is not a readable run record ({exc})") from None
+        meta, _ = read_run_record(out)  # schema-checked, its config validated
+        if (out / "metrics.csv").exists():  # checked before the env is built
+            read_metrics(out, torn_tail=True)
+        config = dict(meta["config"])
         if num_timesteps is not None:
             n = check("num_timesteps", num_timesteps, "--set num_timesteps")
             config["num_timesteps"] = n
@@ -155,7 +156,7 @@ class TrainingRun:
         def write_files(folder: Path) -> None:
             save_policy(folder, params, self._policy_meta(step), atomic=False)
             saved = checkpoints.save_state(folder, host)
-            text = json.dumps({"step": step, **sched, **saved}, indent=2) + "\n"
+            text = dumps({"step": step, **sched, **saved}, indent=2) + "\n"
             fileio.write_text(folder / "state.json", text)
 
         return checkpoints.write(self.ckpt_dir, step, write_files)
@@ -192,6 +193,7 @@ class TrainingRun:
             progress=False,
             params=params,
             gamma=self.cfg.discounting,
+            refuse_all_nan=False,  # a training run records it (nan_worlds), goes on
         )
         return res.summary().as_dict()
 
@@ -199,8 +201,8 @@ class TrainingRun:
     def _read_rows(self, upto_step: int | None = None) -> list[dict[str, str]]:
         if not (self.out / "metrics.csv").exists():
             return []
-        # a row cut short by a kill during its write has missing columns: dropped
-        rows = [r for r in read_metrics(self.out) if None not in r.values() and None not in r]
+        # schema-checked; a row cut short by a kill during its write is dropped
+        rows = read_metrics(self.out, torn_tail=True)
         if upto_step is not None:
             rows = [r for r in rows if int(r["step"]) <= upto_step]
         return rows
@@ -247,23 +249,27 @@ class TrainingRun:
         metrics.csv, truncated to the checkpoint's step (emptied when starting over)."""
         self.out.mkdir(parents=True, exist_ok=True)
         if not resume and (self.out / "run.json").exists():
-            raise UserInputError(
-                f"{self.out} already holds a training run: use --resume {self.out} or a new --out"
-            )
+            if not failed_start(self.out):
+                raise UserInputError(
+                    f"{self.out} already holds a training run: use --resume {self.out} or a "
+                    "new --out"
+                )
+            clear_failed_start(self.out)
+        if resume:
+            self._read_rows()  # metrics.csv schema-checked before any work (file and line)
         found = self.find_resume_point() if resume else None
+        rows = self._read_rows(upto_step=found[2]["step"]) if found else []
         if resume and found is None:
-            print(f"no complete checkpoint in {self.ckpt_dir}: starting over", file=sys.stderr)
+            starting_over(self.out, self.ckpt_dir)
         # validated: from here on the run's records are rewritten
         if self._pending_meta is not None:
-            fileio.write_text(
-                self.out / "run.json", json.dumps(self._pending_meta, indent=2) + "\n"
-            )
+            fileio.write_text(self.out / "run.json", dumps(self._pending_meta, indent=2) + "\n")
             self._pending_meta = None
         if not (self.out / "run.json").exists():
             meta = {"config": self.cfg.as_dict(), "network": self.trainer.network, **provenance()}
-            fileio.write_text(self.out / "run.json", json.dumps(meta, indent=2) + "\n")
+            fileio.write_text(self.out / "run.json", dumps(meta, indent=2) + "\n")
         if resume:  # rows after the checkpoint (all rows when starting over) are redone
-            self._write_rows(self._read_rows(upto_step=found[2]["step"]) if found else [])
+            self._write_rows(rows)
         return found
 
     def _run(self, resume: bool) -> dict[str, Any]:
@@ -405,7 +411,8 @@ class TrainingRun:
             "final_eval": {k[5:]: _f(v) for k, v in last.items() if k.startswith("eval/")},
             **provenance(),
         }
-        fileio.write_text(self.out / "summary.json", json.dumps(summary, indent=2) + "\n")
+        # strict JSON: a statistic without a value (no successful episode) is null, not NaN
+        fileio.write_text(self.out / "summary.json", dumps(summary, indent=2) + "\n")
         try:
             from peghole_mjx.training.plots import plot_curves
 
@@ -420,6 +427,143 @@ class TrainingRun:
             except Exception as exc:
                 print(f"warning: rollout GIF not rendered: {exc}", file=sys.stderr)
         return summary
+
+
+# ---------------------------------------------------------------------- resources
+def replay_row_bytes(obs_size: int, act_size: int) -> int:
+    """Bytes of one replay row: observation, action, reward, discount, next observation and
+    the truncation flag, float32 (Brax's ``Transition``, flattened)."""
+    return 4 * (2 * obs_size + act_size + 3)
+
+
+def check_resources(env, cfg: TrainConfig, obs_size: int, act_size: int, seeds: int = 1) -> int:
+    """Refuse, before anything is allocated or compiled, a run whose replay buffer, batch and
+    worlds do not fit the available memory (``peghole_mjx.memory.check_fits``, host and
+    device); return an estimate of the bytes its outputs take on disk (the two newest states
+    and the one being written, a policy per evaluation, logs and pictures).
+
+    The replay buffer is counted twice (a training call's input and output carries), worlds
+    four times (state, next state, fresh resets, work space)."""
+
+    row = replay_row_bytes(obs_size, act_size)
+    replay = seeds * cfg.max_replay_size * row
+    batch = seeds * cfg.batch_size * cfg.grad_updates_per_step * row * 2
+    runs = f"{seeds} seeds x " if seeds > 1 else ""
+    memory.check_fits(
+        2 * replay + batch,
+        f"the replay buffer ({runs}max_replay_size={cfg.max_replay_size} rows of {row} B, "
+        "held twice during a training call)",
+        "lower --set max_replay_size",
+    )
+    world = memory.world_bytes(env)  # traced, not compiled
+    worlds = seeds * (cfg.num_envs + cfg.num_eval_envs) * world * memory.WORLD_COPIES
+    memory.check_fits(
+        2 * replay + batch + worlds,
+        f"training ({runs}replay buffer {memory.fmt_bytes(2 * replay)}, batch "
+        f"{memory.fmt_bytes(batch)}, {cfg.num_envs} + {cfg.num_eval_envs} eval worlds of "
+        f"{world} B: {memory.fmt_bytes(worlds)})",
+        "lower --set num_envs, num_eval_envs, batch_size or max_replay_size",
+    )
+    sizes = [obs_size, *cfg.hidden_layer_sizes, 2 * act_size]
+    policy = 4 * sum(a * b + b for a, b in itertools.pairwise(sizes)) + 8 * obs_size + 65536
+    evals = cfg.num_timesteps // cfg.eval_every + 2
+    state = replay + seeds * cfg.num_envs * world + 8 * policy
+    return 3 * state + seeds * evals * policy + (32 << 20)
+
+
+# ---------------------------------------------------------------------- run folders
+#: what a run writes besides run.json (``history_N/`` holds these of an abandoned history)
+RUN_OUTPUTS = (
+    "metrics.csv",
+    "history.csv",
+    "checkpoints",
+    "tb",
+    "final_policy",
+    "summary.json",
+    "seeds.json",
+    "curves.png",
+    "rollout.gif",
+)
+
+
+def _data_rows(path: Path) -> bool:
+    """``path`` (a CSV log) holds anything beyond its header line."""
+    if not path.exists():
+        return False
+    lines = [line for line in path.read_bytes().split(b"\n") if line.strip()]
+    return len(lines) > 1
+
+
+def failed_start(out: Path) -> bool:
+    """``out`` holds a readable run.json and nothing of a run's progress: no evaluation row,
+    no checkpoint (of any kind), no final output. Such a folder is what a run that failed
+    before its first evaluation leaves (e.g. out of memory while compiling); a new run may
+    take it over (:func:`clear_failed_start`, under the run's lock)."""
+    try:
+        read_run_record(out, full=False)
+    except UserInputError:
+        return False
+    ckpt = out / "checkpoints"
+    if ckpt.is_dir() and any(ckpt.iterdir()):
+        return False
+    if _data_rows(out / "metrics.csv") or _data_rows(out / "history.csv"):
+        return False
+    finals = ("final_policy", "summary.json", "seeds.json")
+    return not any((out / f).exists() for f in finals) and not any(out.glob("seed_*"))
+
+
+def clear_failed_start(out: Path) -> None:
+    """Remove what a failed start left in ``out`` (:func:`failed_start`), with a warning."""
+    import shutil
+
+    print(
+        f"warning: {out} holds a run that stopped before its first evaluation (no metrics, "
+        "no checkpoint): the new run replaces it",
+        file=sys.stderr,
+    )
+    for name in ("metrics.csv", "history.csv", "tb", "checkpoints"):
+        p = out / name
+        if p.is_dir():
+            shutil.rmtree(p)
+        else:
+            p.unlink(missing_ok=True)
+    (out / "run.json").unlink()
+    fileio.fsync_dir(out)
+
+
+def set_history_aside(out: Path) -> Path | None:
+    """Move a run's outputs (:data:`RUN_OUTPUTS`, ``seed_K/``) into a new ``history_N/`` with a
+    copy of run.json, so that a run starting over never truncates or overwrites them; the
+    folder, or None when there was nothing to keep. Each move is a rename: a kill midway
+    leaves every file in one of the two places."""
+    import shutil
+
+    items = [out / n for n in RUN_OUTPUTS if (out / n).exists()]
+    items += sorted(p for p in out.glob("seed_*") if p.is_dir())
+    if not items:
+        return None
+    taken = [int(p.name[8:]) for p in out.glob("history_*") if p.name[8:].isdigit()]
+    dest = out / f"history_{max(taken, default=0) + 1}"
+    dest.mkdir()
+    if (out / "run.json").exists():
+        shutil.copy2(out / "run.json", dest / "run.json")
+    for p in items:
+        os.replace(p, dest / p.name)
+    fileio.fsync_dir(dest)
+    fileio.fsync_dir(out)
+    return dest
+
+
+def starting_over(out: Path, ckpt_dir: Path) -> Path | None:
+    """A resume that found no checkpoint to continue from: the earlier history is set aside
+    (:func:`set_history_aside`) and the warning says where."""
+    dest = set_history_aside(out)
+    kept = ""
+    if dest is not None:
+        names = ", ".join(sorted(p.name for p in dest.iterdir() if p.name != "run.json"))
+        kept = f"; the earlier history ({names}) is kept in {dest}, not overwritten"
+    print(f"warning: no complete checkpoint in {ckpt_dir}: starting over{kept}", file=sys.stderr)
+    return dest
 
 
 # ---------------------------------------------------------------------- helpers

@@ -40,8 +40,9 @@ from peghole_mjx.envs.metrics import EVAL_STATS, TOTAL_KEYS, TRAIN_STATS, summar
 from peghole_mjx.errors import CorruptFileError, UserInputError
 from peghole_mjx.provenance import provenance
 from peghole_mjx.training import checkpoints
-from peghole_mjx.training.config import TrainConfig
+from peghole_mjx.training.config import TrainConfig, read_run_record
 from peghole_mjx.training.functional import make_train
+from peghole_mjx.validation import dumps
 
 #: the losses logged per chunk (means over its calls)
 LOSSES = ("loss/critic", "loss/actor", "loss/alpha", "alpha")
@@ -72,6 +73,12 @@ class SeedsRun:
         self.cfg, self.seeds, self.out, self.progress = cfg, seeds, Path(out), progress
         self.env = load(cfg.env, config_overrides=cfg.env_overrides or None)
         self.train = make_train(self.env, cfg)
+        # before anything is allocated, compiled or written
+        from peghole_mjx.training.run import check_resources
+
+        trainer = self.train.trainer
+        need_disk = check_resources(self.env, cfg, trainer.obs_size, trainer.act_size, seeds)
+        fileio.check_room(self.out, need_disk, "--out")
         self.keys = jnp.stack([jax.random.PRNGKey(cfg.seed + k) for k in range(seeds)])
         self.chunk_calls = max(1, cfg.eval_every // self.train.steps_per_call)
         self.ckpt_dir = self.out / "checkpoints"
@@ -80,15 +87,19 @@ class SeedsRun:
 
     @classmethod
     def resume(cls, out: str | Path, progress: bool = True) -> SeedsRun:
-        path = Path(out) / "run.json"
-        try:
-            meta = json.loads(path.read_text())
-            cfg, seeds = TrainConfig.from_dict(meta["config"]), meta["seeds"]
-        except FileNotFoundError:
-            raise UserInputError(f"--resume: {path} not found (not a training run)") from None
-        except (ValueError, KeyError, TypeError) as exc:
-            raise CorruptFileError(f"{path} is not a readable multi-seed run ({exc})") from None
-        return cls(cfg, seeds, out, progress)
+        meta, cfg = read_run_record(out)  # schema-checked, its config validated
+        if "seeds" not in meta:
+            raise CorruptFileError(f"{Path(out) / 'run.json'}: not a multi-seed run (no seeds)")
+        if (Path(out) / "history.csv").exists():  # checked before the env is built
+            from peghole_mjx.training.plots import read_rows
+
+            read_rows(Path(out) / "history.csv", ("seed", "step"), torn_tail=True)
+        return cls(cfg, meta["seeds"], out, progress)
+
+    def checkpoint_files(self) -> tuple[str, ...]:
+        """What a checkpoint of this run holds, verified before a resume: every seed's
+        policy folder (``seed_K/``) and the stacked state."""
+        return (*(f"seed_{k}" for k in range(self.seeds)), *checkpoints.STATE_FILES)
 
     # ------------------------------------------------------------------ state I/O
     def _template(self):
@@ -109,7 +120,7 @@ class SeedsRun:
             for k in range(self.seeds):
                 self._save_policy(folder / f"seed_{k}", host, k, step, atomic=False)
             saved = checkpoints.save_state(folder, host)
-            fileio.write_text(folder / "state.json", json.dumps({"step": step, **saved}) + "\n")
+            fileio.write_text(folder / "state.json", dumps({"step": step, **saved}) + "\n")
 
         checkpoints.write(self.ckpt_dir, step, write_files)
 
@@ -123,11 +134,12 @@ class SeedsRun:
 
     # ------------------------------------------------------------------ history
     def _rows(self, upto: int | None = None) -> list[dict[str, str]]:
+        from peghole_mjx.training.plots import read_rows
+
         path = self.out / "history.csv"
         if not path.exists():
             return []
-        with path.open() as f:
-            rows = list(csv.DictReader(f))
+        rows = read_rows(path, ("seed", "step"), torn_tail=True)  # schema-checked
         return [r for r in rows if upto is None or int(r["step"]) <= upto]
 
     def _write_rows(self, rows: list[dict[str, Any]]) -> None:
@@ -161,19 +173,7 @@ class SeedsRun:
 
         self.out.mkdir(parents=True, exist_ok=True)
         with RunLock(self.out):
-            found = checkpoints.newest_valid(self.ckpt_dir, self._load) if resume else None
-            if not resume:
-                if (self.out / "run.json").exists():
-                    raise UserInputError(
-                        f"{self.out} already holds a training run: use --resume or a new --out"
-                    )
-                meta = {
-                    "config": self.cfg.as_dict(),
-                    "seeds": self.seeds,
-                    "network": self.train.network,
-                    **provenance(),
-                }
-                fileio.write_text(self.out / "run.json", json.dumps(meta, indent=2) + "\n")
+            found, rows = self.prepare(resume)
             flags = np.asarray(self.train.learn_flags())
             per_call = self.train.steps_per_call
             bar = tqdm(
@@ -187,11 +187,9 @@ class SeedsRun:
             )
             if found is not None:
                 path, (carry, step) = found
-                rows = self._rows(upto=step)
                 print(f"resumed from {path} at {step} env steps", file=sys.stderr)
             else:
-                carry, step, rows = self._init(self.keys), 0, []
-            self._write_rows(rows)
+                carry, step = self._init(self.keys), 0
             bar.update(step)
             chunk: list[tuple[bool, dict]] = []
             for i in range(step // per_call, len(flags)):
@@ -207,6 +205,39 @@ class SeedsRun:
                     self._save(carry, step)
             bar.close()
             return self.finish(carry, step)
+
+    def prepare(self, resume: bool):
+        """``(found, rows)``: the checkpoint to resume from (``(path, (carry, step))``, None:
+        from the start) and the rows of history.csv up to it, written back. Holding the lock:
+        a new run refuses a folder that holds a run (but for a failed start, replaced); a
+        resume verifies each checkpoint by this run's layout (``seed_K/`` policies and the
+        state), falls back past corrupt ones and, finding none, sets the history aside
+        (``history_N/``) before starting over."""
+        from peghole_mjx.training.run import clear_failed_start, failed_start, starting_over
+
+        found = None
+        if resume:
+            self._rows()  # history.csv schema-checked before any work (file and line)
+            found = checkpoints.newest_valid(self.ckpt_dir, self._load, self.checkpoint_files())
+            if found is None:
+                starting_over(self.out, self.ckpt_dir)
+        elif (self.out / "run.json").exists():
+            if not failed_start(self.out):
+                raise UserInputError(
+                    f"{self.out} already holds a training run: use --resume or a new --out"
+                )
+            clear_failed_start(self.out)
+        if not (self.out / "run.json").exists():
+            meta = {
+                "config": self.cfg.as_dict(),
+                "seeds": self.seeds,
+                "network": self.train.network,
+                **provenance(),
+            }
+            fileio.write_text(self.out / "run.json", dumps(meta, indent=2) + "\n")
+        rows = self._rows(upto=found[1][1]) if found is not None else []
+        self._write_rows(rows)
+        return found, rows
 
     def finish(self, carry, step: int) -> dict[str, Any]:
         """Each seed's final policy, evaluated on the same episodes; seeds.json; curves."""
@@ -227,6 +258,7 @@ class SeedsRun:
                 progress=False,
                 params=params,
                 gamma=self.cfg.discounting,
+                refuse_all_nan=False,  # a training run records it (nan_worlds), goes on
             )
             per_seed.append({"seed": self.cfg.seed + k, **res.summary().as_dict()})
         across = {}
@@ -250,7 +282,8 @@ class SeedsRun:
             "final_eval_over_seeds": across,
             **provenance(),
         }
-        fileio.write_text(self.out / "seeds.json", json.dumps(summary, indent=2) + "\n")
+        # strict JSON: a statistic without a value (no successful episode) is null, not NaN
+        fileio.write_text(self.out / "seeds.json", dumps(summary, indent=2) + "\n")
         try:
             from peghole_mjx.training.plots import plot_seed_bands
 
