@@ -35,6 +35,7 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
+from peghole_mjx import fileio
 from peghole_mjx.validation import arg
 
 #: the record of the demo's stages in ``--out``
@@ -133,12 +134,7 @@ def output_bytes(cfg) -> int:
 
 
 # ---------------------------------------------------------------------- the stage record
-def _sha256(path: Path) -> str:
-    h = hashlib.sha256()
-    with open(path, "rb") as f:
-        for block in iter(lambda: f.read(1 << 20), b""):
-            h.update(block)
-    return h.hexdigest()
+_sha256 = fileio.sha256_file
 
 
 def _manifest(out: Path, name: str | None) -> dict[str, str]:
@@ -222,7 +218,6 @@ class DemoState:
         return cls(out, {k: v for k, v in stages.items() if k in STAGE_OUTPUTS})
 
     def _save(self) -> None:
-        from peghole_mjx import fileio
         from peghole_mjx.validation import dumps
 
         text = dumps({"demo": 1, "stages": self.stages}, indent=2) + "\n"

@@ -8,6 +8,7 @@ leaves the old file as it was. ``check_out_*`` tell a bad output path before the
 from __future__ import annotations
 
 import contextlib
+import hashlib
 import os
 import shutil
 from collections.abc import Callable, Iterator
@@ -29,6 +30,15 @@ def fsync_dir(path: str | Path) -> None:
         pass  # some file systems cannot fsync a folder
     finally:
         os.close(fd)
+
+
+def sha256_file(path: str | Path) -> str:
+    """Hex SHA-256 of a file's bytes (read in 1 MiB blocks)."""
+    h = hashlib.sha256()
+    with open(path, "rb") as f:
+        for block in iter(lambda: f.read(1 << 20), b""):
+            h.update(block)
+    return h.hexdigest()
 
 
 def _tmp_name(path: Path) -> Path:

@@ -20,7 +20,6 @@ positional ``state.npz``) are not resumable: :func:`newest_valid` refuses them i
 
 from __future__ import annotations
 
-import hashlib
 import json
 import os
 import re
@@ -138,12 +137,7 @@ def _check_same_structure(folder: Path, have: dict, want: dict) -> None:
         )
 
 
-def sha256(path: Path) -> str:
-    h = hashlib.sha256()
-    with open(path, "rb") as f:
-        for block in iter(lambda: f.read(1 << 20), b""):
-            h.update(block)
-    return h.hexdigest()
+sha256 = fileio.sha256_file  # the manifest's file hash
 
 
 def seal(folder: Path) -> None:
