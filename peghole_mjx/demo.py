@@ -173,7 +173,7 @@ class DemoState:
         work: a damaged ``demo.json``, or demo outputs that it does not record (unless
         ``force``, which deletes the demo's earlier outputs)."""
         from peghole_mjx.errors import CorruptFileError, UserInputError
-        from peghole_mjx.validation import loads
+        from peghole_mjx.validation import load_json_object
 
         present = [n for n in DEMO_OUTPUTS if (out / n).exists() or (out / n).is_symlink()]
         state_file = out / DEMO_STATE
@@ -194,13 +194,13 @@ class DemoState:
                     "another --out"
                 )
             return cls(out, {})
-        try:
-            data = loads(state_file.read_text())
-        except (ValueError, UnicodeDecodeError) as exc:
-            raise CorruptFileError(
-                f"{state_file} is damaged ({exc}): pass --force to start afresh"
-            ) from None
-        stages = data.get("stages") if isinstance(data, dict) else None
+        data = load_json_object(
+            state_file,
+            lambda why: CorruptFileError(
+                f"{state_file} is damaged ({why}): pass --force to start afresh"
+            ),
+        )
+        stages = data.get("stages")
         if not isinstance(stages, dict) or not all(isinstance(r, dict) for r in stages.values()):
             raise CorruptFileError(
                 f"{state_file} is not a demo record ('stages' must map each stage to an "

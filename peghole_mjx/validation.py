@@ -82,9 +82,9 @@ SEED = Range(0, 2**32 - 1, integer=True)
 
 #: the KUKA LBR iiwa's Cartesian impedance mode: translational stiffness 0-5000 N/m,
 #: rotational 0-300 N m/rad, damping ratio 0.1-1 (the robot the thesis's gains are set on)
-IIWA_K_TRANS = Range(0.0, 5000.0, lo_open=True, why_hi="the iiwa's Cartesian impedance range")
-IIWA_K_ROT = Range(0.0, 300.0, lo_open=True, why_hi="the iiwa's Cartesian impedance range")
 _KIND = "the iiwa's Cartesian impedance range"
+IIWA_K_TRANS = Range(0.0, 5000.0, lo_open=True, why_hi=_KIND)
+IIWA_K_ROT = Range(0.0, 300.0, lo_open=True, why_hi=_KIND)
 #: the most a user may scale a measured contact maximum by in ``contact_cap`` (envs/config.py):
 #: above 4x every scene's allocated contacts are covered, and the cap no longer caps anything
 CONTACT_CAP_FACTOR = 4
@@ -333,6 +333,23 @@ def loads(text: str) -> Any:
     if depth > MAX_JSON_DEPTH:
         raise ValueError(f"JSON nested {depth} deep (at most {MAX_JSON_DEPTH} read)")
     return json.loads(text, parse_constant=bare)
+
+
+def load_json_object(path, bad) -> dict:
+    """The JSON object in file ``path`` (strict: :func:`loads`), else ``bad(why)`` raised,
+    ``bad`` building the caller's one-line error (which names the file and what to do)."""
+    from pathlib import Path
+
+    try:
+        doc = loads(Path(path).read_text())
+    except UnicodeDecodeError:
+        raise bad("not text") from None
+    except ValueError as exc:
+        raise bad(f"not valid JSON: {exc}") from None
+    if not isinstance(doc, dict):
+        kind = {list: "list", str: "string"}.get(type(doc), type(doc).__name__)
+        raise bad(f"a JSON object expected; got a JSON {kind}, not an object")
+    return doc
 
 
 #: deepest nesting of JSON read back (peghole's own files nest fewer than 10 levels); deeper

@@ -222,7 +222,7 @@ def read_contact_runs(path: Path) -> list[dict]:
     """The runs of an existing contact-check JSON (for ``--append``), schema-checked before any
     simulation: an object whose ``runs`` is a list of runs, each with a preset, a variant
     name, a summary and its worlds. Anything else is refused in one line naming the file."""
-    from peghole_mjx.validation import loads
+    from peghole_mjx.validation import load_json_object
 
     def bad(why: str):
         return CorruptFileError(
@@ -230,14 +230,7 @@ def read_contact_runs(path: Path) -> list[dict]:
             "move that file away"
         )
 
-    try:
-        doc = loads(path.read_text())
-    except UnicodeDecodeError:
-        raise bad("not text") from None
-    except ValueError as exc:
-        raise bad(f"not valid JSON: {exc}") from None
-    if not isinstance(doc, dict):
-        raise bad(f"a JSON {type(doc).__name__}, not an object")
+    doc = load_json_object(path, bad)
     runs = doc.get("runs")
     if not isinstance(runs, list):
         raise bad('no "runs" list' if runs is None else f'"runs" is a {type(runs).__name__}')

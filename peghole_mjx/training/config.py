@@ -249,21 +249,16 @@ def read_run_record(out: str | Path, what: str = "--resume", full: bool = True):
     :class:`UserInputError`, a damaged one a :class:`CorruptFileError`, in one line naming it.
     """
     from peghole_mjx.errors import CorruptFileError
-    from peghole_mjx.validation import loads
+    from peghole_mjx.validation import load_json_object
 
     path = Path(out) / "run.json"
     if not path.is_file():
         raise UserInputError(f"{what}: {path} not found (not a training run directory)")
-    try:
-        meta = loads(path.read_text())
-    except (OSError, UnicodeDecodeError, ValueError) as exc:
-        raise CorruptFileError(f"{path} is not a readable run record ({exc})") from None
 
     def bad(why: str) -> CorruptFileError:
         return CorruptFileError(f"{path} is not a readable run record ({why})")
 
-    if not isinstance(meta, dict):
-        raise bad(f"a JSON object expected, got {type(meta).__name__}")
+    meta = load_json_object(path, bad)
     config = meta.get("config")
     if not isinstance(config, dict):
         raise bad(f"'config' must be an object, got {type(config).__name__}")

@@ -72,19 +72,14 @@ def _config_key(env, ignored=()) -> str:
 
 def _read_key(key_file: Path) -> dict[str, Any]:
     """A slice folder's ``key.json`` (strict JSON, an object), else one line naming it."""
-    from peghole_mjx.validation import loads
+    from peghole_mjx.validation import load_json_object
 
-    try:
-        old = loads(key_file.read_text())
-    except (ValueError, UnicodeDecodeError) as exc:
-        raise CorruptFileError(
-            f"{key_file} is damaged ({exc}): delete its folder to run its slices again"
-        ) from None
-    if not isinstance(old, dict):
-        raise CorruptFileError(
-            f"{key_file} is not a JSON object: delete its folder to run its slices again"
-        )
-    return old
+    return load_json_object(
+        key_file,
+        lambda why: CorruptFileError(
+            f"{key_file} is damaged ({why}): delete its folder to run its slices again"
+        ),
+    )
 
 
 def _keyed_dir(root: Path, key: dict[str, Any]) -> Path:

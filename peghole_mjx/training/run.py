@@ -255,10 +255,10 @@ class TrainingRun:
                     "new --out"
                 )
             clear_failed_start(self.out)
-        if resume:
-            self._read_rows()  # metrics.csv schema-checked before any work (file and line)
+        # metrics.csv read once, schema-checked before any work (file and line)
+        logged = self._read_rows() if resume else []
         found = self.find_resume_point() if resume else None
-        rows = self._read_rows(upto_step=found[2]["step"]) if found else []
+        rows = [r for r in logged if int(r["step"]) <= found[2]["step"]] if found else []
         if resume and found is None:
             starting_over(self.out, self.ckpt_dir)
         # validated: from here on the run's records are rewritten
