@@ -6,7 +6,8 @@ through here, early, keeps stdout clean; any other import output still goes to s
 
 ``support`` is MJX's private ``mujoco.mjx._src.support`` (point Jacobian, full inertia matrix),
 used by :mod:`peghole_mjx.control.kinematics`; a MuJoCo upgrade that moves it breaks here
-only. (:mod:`peghole_mjx.mjx_fixes` patches ``mujoco.mjx._src.solver`` itself.)
+only; ``solver`` is MJX's private ``mujoco.mjx._src.solver``, which :mod:`peghole_mjx.mjx_fixes`
+patches.
 """
 
 from __future__ import annotations
@@ -18,11 +19,11 @@ import sys
 _buf = io.StringIO()
 with contextlib.redirect_stdout(_buf):
     from mujoco import mjx
-    from mujoco.mjx._src import support
+    from mujoco.mjx._src import solver, support
 
 WARP_AVAILABLE = "Failed to import warp" not in _buf.getvalue()
 for _line in _buf.getvalue().splitlines():
     if "import warp" not in _line and "import mujoco_warp" not in _line:
         print(_line, file=sys.stderr)
 
-__all__ = ["WARP_AVAILABLE", "mjx", "support"]
+__all__ = ["WARP_AVAILABLE", "mjx", "solver", "support"]

@@ -24,7 +24,8 @@ GROUPS: dict[str, str] = {
     "experiment": "peghole_mjx.experiments.cli",
     "envs": "peghole_mjx.envs.cli",
     "train": "peghole_mjx.training.cli",  # also adds `evaluate` and `compare`
-    "demo": "peghole_mjx.demo",
+    "demo": "peghole_mjx.demo_cli",
+    "export": "peghole_mjx.export_cli",  # policy -> ONNX for a robot (peghole_mjx.deploy)
 }
 
 

@@ -10,6 +10,9 @@ from __future__ import annotations
 
 import weakref
 
+import jax
+import numpy as np
+
 from peghole_mjx.errors import UserInputError
 
 #: share of the available memory a run may plan to use (the rest: XLA's work space, Python)
@@ -30,8 +33,6 @@ def host_available_bytes() -> int | None:
 
 def device_available_bytes() -> int | None:
     """Free memory of JAX's first accelerator in bytes; None on a CPU or where not reported."""
-    import jax
-
     dev = jax.devices()[0]
     if dev.platform == "cpu":
         return None
@@ -77,9 +78,6 @@ def world_bytes(env) -> int:
         return _WORLD_BYTES[env]
     except (KeyError, TypeError):
         pass
-    import jax
-    import numpy as np
-
     one = jax.eval_shape(env.reset, jax.random.PRNGKey(0))
     n = sum(int(np.prod(x.shape)) * np.dtype(x.dtype).itemsize for x in jax.tree.leaves(one))
     try:

@@ -10,7 +10,7 @@ same clamp was found and removed in MuJoCo Warp (google-deepmind/mujoco_warp pul
 MJX. The fix writes the term as ``(mu N / T) * (u / T)(u / T)^T``: the same value wherever
 ``T^3`` > 1e-15, no separate clamp below it.
 
-Evidence in this project (benchmarks/results/low_stiffness_check.json, rect-2 at
+Evidence in this project (benchmarks/results/studies/low_stiffness_check.json, rect-2 at
 K_theta 3 N m/rad): a world that ended in NaN with MJX as shipped finished with the fix; the
 other world of the batch moved by 0.3 %. The compliance experiment traces its
 functions inside :func:`cone_hessian_fix` (``ExperimentConfig.fix_cone_hessian``, on by default;
@@ -25,7 +25,7 @@ import functools
 import inspect
 from collections.abc import Callable, Iterator
 
-from peghole_mjx._mjx import mjx  # noqa: F401  (imports mujoco.mjx quietly first)
+from peghole_mjx._mjx import solver  # MJX's private solver module, imported quietly
 
 _OLD = """      ttt = jp.maximum(t * t * t, mujoco.mjMINVAL)
       h = jax.vmap(lambda x, y: x * jp.outer(y, y.T))(mu * n / ttt, u)"""
@@ -42,8 +42,6 @@ def cone_hessian_fix_applied() -> bool:
 @functools.cache
 def _fixed(old: str, new: str) -> Callable:
     """MJX's ``_update_constraint`` with ``old`` replaced by ``new`` (built once per process)."""
-    from mujoco.mjx._src import solver
-
     src = inspect.getsource(solver._update_constraint)
     if old not in src:
         raise RuntimeError(
@@ -63,8 +61,6 @@ def apply_cone_hessian_fix() -> None:
     """
     if cone_hessian_fix_applied():
         return
-    from mujoco.mjx._src import solver
-
     fixed = _fixed(_OLD, _NEW)
     _state["original"] = solver._update_constraint
     solver._update_constraint = fixed
@@ -74,8 +70,6 @@ def remove_cone_hessian_fix() -> None:
     """Restore MJX's shipped function."""
     if not cone_hessian_fix_applied():
         return
-    from mujoco.mjx._src import solver
-
     solver._update_constraint = _state.pop("original")
 
 

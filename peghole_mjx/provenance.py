@@ -7,6 +7,8 @@ import importlib.metadata
 import os
 import platform
 
+import jax
+
 _PACKAGES = (
     "peghole_mjx",
     "mujoco",
@@ -45,14 +47,12 @@ def device() -> str:
     """The JAX default device and the host CPU, e.g. ``cpu (2 cores, x86_64)``."""
     host = f"{os.cpu_count()} cores, {platform.machine()}"
     try:
-        import jax
-
         dev = jax.devices()[0]
         kind = getattr(dev, "device_kind", dev.platform)
         if dev.platform == "cpu":
             return cpu_device()
         return f"{dev.platform}: {kind} x{jax.device_count()} (host {host})"
-    except Exception:  # jax missing or broken: still say what the host is
+    except Exception:  # no usable JAX backend: still say what the host is
         return cpu_device()
 
 

@@ -10,6 +10,7 @@ from __future__ import annotations
 
 from typing import Any
 
+import jax
 import numpy as np
 
 
@@ -23,8 +24,6 @@ def _key_name(k: Any) -> str:
 def named_leaves(tree: Any) -> dict[str, np.ndarray]:
     """``{"a/b/0": array}``: every leaf of ``tree`` named by its tree path, as a numpy array,
     in tree order."""
-    import jax
-
     out: dict[str, np.ndarray] = {}
     for path, leaf in jax.tree_util.tree_flatten_with_path(jax.device_get(tree))[0]:
         name = path_name(path)

@@ -11,9 +11,14 @@ output and written reports are valid JSON.
 from __future__ import annotations
 
 import argparse
+import json
 import math
+import re
 from dataclasses import dataclass
+from pathlib import Path
 from typing import Any
+
+from peghole_mjx.errors import UserInputError
 
 # (UserInputError is imported where raised: peghole_mjx.errors imports the geometry specs,
 # which read RANGES while this module may still be loading)
@@ -242,8 +247,6 @@ def check(name: str, value: Any, label: str | None = None, kind: str | None = No
 
     Integers come back as ``int`` (a whole float such as ``1e6`` is accepted).
     """
-    from peghole_mjx.errors import UserInputError
-
     rng = RANGES[kind or name]
     msg = rng.problem(value)
     if msg:
@@ -276,6 +279,21 @@ def arg(kind: str):
     return parse
 
 
+def key_value(text: str) -> tuple[str, object]:
+    """An argparse ``type``: ``KEY=VALUE``, VALUE as JSON when it parses (``0.5``, ``true``,
+    ``[0.8, 1.2]``, a list becoming a tuple), else the text itself."""
+    if "=" not in text:
+        raise argparse.ArgumentTypeError(f"expected KEY=VALUE, got {text!r}")
+    key, value = text.split("=", 1)
+    try:
+        parsed = json.loads(value)
+    except json.JSONDecodeError:
+        parsed = value
+    if isinstance(parsed, list):
+        parsed = tuple(parsed)
+    return key.strip(), parsed
+
+
 def finite_float(text: str) -> float:
     """An argparse ``type``: any finite float (NaN and infinity refused)."""
     try:
@@ -289,8 +307,6 @@ def finite_float(text: str) -> float:
 
 def check_finite_tree(tree: Any, where: str) -> None:
     """Every number in a nested dict/list/tuple is finite (names the first that is not)."""
-    from peghole_mjx.errors import UserInputError
-
     if isinstance(tree, dict):
         for k, v in tree.items():
             check_finite_tree(v, f"{where}.{k}" if where else str(k))
@@ -317,14 +333,11 @@ def json_safe(obj: Any) -> Any:
 
 def dumps(obj: Any, **kw) -> str:
     """Strict JSON (``allow_nan=False``) of ``json_safe(obj)``."""
-    import json
-
     return json.dumps(json_safe(obj), allow_nan=False, **kw)
 
 
 def loads(text: str) -> Any:
     """Parse strict JSON: a bare ``NaN`` or ``Infinity`` (not JSON) raises ValueError."""
-    import json
 
     def bare(name: str):
         raise ValueError(f"not JSON: bare {name}")
@@ -338,8 +351,6 @@ def loads(text: str) -> Any:
 def load_json_object(path, bad) -> dict:
     """The JSON object in file ``path`` (strict: :func:`loads`), else ``bad(why)`` raised,
     ``bad`` building the caller's one-line error (which names the file and what to do)."""
-    from pathlib import Path
-
     try:
         doc = loads(Path(path).read_text())
     except UnicodeDecodeError:
@@ -359,8 +370,6 @@ MAX_JSON_DEPTH = 64
 
 def _max_nesting(text: str) -> int:
     """Deepest ``[``/``{`` nesting of ``text``, outside strings (a linear scan, no recursion)."""
-    import re
-
     depth = deepest = 0
     for tok in re.finditer(r'"(?:[^"\\]|\\.)*"|[\[\]{}]', text):
         t = tok.group()

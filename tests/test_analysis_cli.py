@@ -47,7 +47,7 @@ def test_claims_json_has_all_ten_with_evidence(capsys, claims_json):
     ids = [c["id"] for c in claims_json]
     assert ids == ["C2.1", "C2.2", "C2.3", "C2.4", "C2.5", "C3.1", "C3.2", "C3.3", "C3.4", "C3.5"]
     for c in claims_json:
-        assert set(c) == {"id", "statement", "reproduced", "evidence"}
+        assert set(c) == {"id", "statement", "reproduced", "evidence", "regime"}
         assert isinstance(c["reproduced"], bool)
         assert c["evidence"]
     json.dumps(claims_json)
@@ -57,6 +57,65 @@ def test_claims_cli_json(capsys):
     assert main(["analyze", "claims", "--json"]) == 0
     out = strict_json(capsys.readouterr().out)
     assert len(out) == 10
+
+
+def test_claims_summary_counts_the_verdicts_and_names_each_regime(claims_json):
+    lines = claims.summary_lines(claims_json)
+    n_ok = sum(c["reproduced"] for c in claims_json)
+    assert lines[0].startswith(f"Summary: {n_ok} reproduced, {10 - n_ok} not reproduced at the ")
+    assert len(lines) == 11  # the count, then one line per claim
+    by_id = {ln.split()[0]: ln for ln in lines[1:]}
+    for c in claims_json:
+        line = by_id[c["id"]]
+        if c["reproduced"]:
+            assert line.endswith("reproduced") and "not" not in line
+            assert c["regime"] is None
+        else:
+            assert "not reproduced; " in line
+            assert set(c["regime"]) == {"checked", "holds", "detail"}
+    # the L_C effects hidden by the thesis's 30e4 N mm/rad appear at a compliant K_theta
+    # (erratum E12), computed with the same criteria (shrinks, moves toward the mouth)
+    for cid in ("C2.2", "C2.3", "C3.2"):
+        c = {x["id"]: x for x in claims_json}[cid]
+        assert not c["reproduced"] and c["regime"]["holds"] is True, cid
+        assert "; holds at K_theta" in by_id[cid]
+    trend = {x["id"]: x for x in claims_json}["C2.2"]["evidence"]["compliant_L_C_trend"]
+    lens = trend["state_5"]["length_mm"]
+    assert lens[0] == 0 and lens[-1] > 40  # gone at L_C 0, over 40 mm at L_C 50
+    assert "does not hold at K_theta = K_phi 5e3 N mm/rad" in by_id["C3.4"]
+    assert "either" in by_id["C3.4"]
+    assert "no regime to check" in by_id["C2.1"] and "no regime to check" in by_id["C3.1"]
+
+
+def test_claims_summary_of_fabricated_verdicts():
+    def claim(cid, ok, regime=None):
+        return {"id": cid, "statement": "s", "reproduced": ok, "evidence": {}, "regime": regime}
+
+    lines = claims.summary_lines(
+        [
+            claim("X1", True),
+            claim("X2", False, {"checked": "K 1", "holds": True, "detail": "grows"}),
+            claim("X3", False, {"checked": "K 2", "holds": False, "detail": "flat"}),
+            claim("X4", False, {"checked": None, "holds": None, "detail": "a count"}),
+        ]
+    )
+    assert lines[0].startswith("Summary: 1 reproduced, 3 not reproduced at the thesis's")
+    assert lines[1:] == [
+        "  X1  reproduced",
+        "  X2  not reproduced; holds at K 1: grows",
+        "  X3  not reproduced; does not hold at K 2 either: flat",
+        "  X4  not reproduced; a count",
+    ]
+
+
+def test_claims_cli_prints_each_claim_then_the_summary(capsys, monkeypatch, claims_json):
+    monkeypatch.setattr(claims, "evaluate", lambda: claims_json)  # evaluated once per module
+    assert main(["analyze", "claims"]) == 0
+    out = capsys.readouterr().out.splitlines()
+    assert out[-11:] == claims.summary_lines(claims_json)
+    assert out[0].startswith("C2.1: not reproduced. Dual: 13 contact states")
+    assert out[1].startswith("    evidence: {")
+    assert "--json for all" in "\n".join(out)  # long evidence is cut, and says so
 
 
 def test_claim_c3_3_roots_independent_of_L_C(claims_json):

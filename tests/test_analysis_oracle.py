@@ -87,7 +87,8 @@ def test_grid_has_enough_small_angle_combinations(grid):
 def test_closed_form_agrees_with_oracle_within_two_percent(grid):
     ln, cf = grid["ln"], grid["length"]
     # emptiness agrees everywhere, except near-tangent regions whose contact forces stay
-    # below 1 mN (small-angle error decides the sign of a vanishing force; docs/analysis.md)
+    # below 1 mN (small-angle error decides the sign of a vanishing force;
+    # docs/research/analysis.md)
     mismatch = (ln > 0) != (cf > 0)
     assert mismatch.sum() <= 3
     assert np.all(grid["nmax"][mismatch] < 1e-3)

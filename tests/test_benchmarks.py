@@ -3,6 +3,7 @@ C control step, the PyBullet baseline env (skipped without pybullet), result rea
 
 import csv
 import json
+import os
 import subprocess
 import sys
 from pathlib import Path
@@ -11,22 +12,21 @@ import jax.numpy as jnp
 import mujoco
 import numpy as np
 import pytest
+from scipy import stats
 
-from benchmarks import (
-    bench_common,
-    engines,
-    paired_reduction,
-    plot,
-    readme_tables,
-    rl_vs_rlcs,
-    roofline,
-    throughput,
-)
+from benchmarks import common
+from benchmarks.baselines import pybullet_peghole, time_to_success
+from benchmarks.evals import paired_reduction, rl_vs_rlcs
+from benchmarks.evals.cross_engine import compare, paired_difference
+from benchmarks.perf import engines, plot, roofline, throughput
+from benchmarks.studies import capsule_fidelity
 from peghole_mjx import envs
+from peghole_mjx._mjx import mjx
 from peghole_mjx.control import ImpedanceController, Target, make_params
 from peghole_mjx.control.reference import rot_from_rotvec
 from peghole_mjx.envs.reward import REWARD_WEIGHTS
-from peghole_mjx.geometry.mjcf import TOOL_DOWN_MAT
+from peghole_mjx.geometry.mjcf import CONTACT_CAPS, TOOL_DOWN_MAT
+from peghole_mjx.geometry.parts import DUAL_DEFAULT_REPRESENTATION, RECT_DEFAULT_REPRESENTATION
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -54,7 +54,7 @@ def _row(**kw):
         "env_steps_per_s": 100.0,
         "compile_s": "",
         "peak_mem_mb": 300.0,
-        "versions": bench_common.versions_str(),
+        "versions": common.versions_str(),
         "date": "2026-11-22T00:00:00Z",
     }
     row.update(kw)
@@ -63,24 +63,24 @@ def _row(**kw):
 
 # ----------------------------------------------------------------------------- CSV
 def test_csv_writer_has_exactly_the_issue_columns(tmp_path):
-    path = bench_common.write_csv(tmp_path / "t.csv", [_row(), _row(engine="pybullet")])
+    path = common.write_csv(tmp_path / "t.csv", [_row(), _row(engine="pybullet")])
     with path.open() as f:
         header = next(csv.reader(f))
     assert header == EXPECTED_COLUMNS
-    rows = bench_common.read_csv(path)
+    rows = common.read_csv(path)
     assert [r["engine"] for r in rows] == ["mujoco-c", "pybullet"]
     assert rows[0]["compile_s"] is None and rows[0]["worlds"] == 1
     with pytest.raises(ValueError, match="misses"):
-        bench_common.write_csv(tmp_path / "bad.csv", [{"engine": "x"}])
+        common.write_csv(tmp_path / "bad.csv", [{"engine": "x"}])
     with pytest.raises(ValueError):
-        bench_common.write_csv(tmp_path / "bad.csv", [_row(extra=1)])
-    assert "," not in bench_common.versions_str()  # one CSV field
+        common.write_csv(tmp_path / "bad.csv", [_row(extra=1)])
+    assert "," not in common.versions_str()  # one CSV field
 
 
 def test_max_rss_sees_this_process_allocating():
     """A fresh process (no earlier peak to hide under) that touches 200 MiB reports it."""
     code = (
-        "import numpy as np; from benchmarks import bench_common as b;"
+        "import numpy as np; from benchmarks import common as b;"
         "before = b.max_rss_mb(); block = np.ones(200 * 2**20 // 8);"
         "print(before, b.max_rss_mb())"
     )
@@ -96,12 +96,12 @@ def test_max_rss_sees_this_process_allocating():
 
 
 def test_committed_throughput_csvs_are_well_formed():
-    csvs = sorted((ROOT / "benchmarks" / "results").glob("throughput_*.csv"))
+    csvs = sorted(common.PERF_RESULTS.glob("throughput_*.csv"))
     for path in csvs:
         with path.open() as f:
             assert next(csv.reader(f)) == EXPECTED_COLUMNS, path
-        for r in bench_common.read_csv(path):
-            assert r["engine"] in bench_common.ENGINES and r["scene"] in ("rect", "dual")
+        for r in common.read_csv(path):
+            assert r["engine"] in common.ENGINES and r["scene"] in ("rect", "dual")
             assert r["physics_steps_per_s"] == pytest.approx(
                 10 * r["env_steps_per_s"], rel=1e-3, abs=1.0
             )
@@ -113,7 +113,7 @@ def test_quick_plan_covers_the_acceptance_engines():
         (),
         {
             "quick": True,
-            "engines": list(bench_common.ENGINES),
+            "engines": list(common.ENGINES),
             "scenes": ["rect", "dual"],
             "worlds": None,
             "chunk": None,
@@ -126,9 +126,9 @@ def test_quick_plan_covers_the_acceptance_engines():
     assert "mjx-warp" not in engines  # no GPU: skipped with a message
     assert not any(j["engine"] == "pybullet" and j["scene"] == "dual" for j in jobs)
     assert not any(j["engine"] == "mjx-jax" and j["scene"] == "dual" for j in jobs)
-    assert bench_common.device_label(None) == bench_common.cpu_label()
-    assert bench_common.device_label("NVIDIA H100 80GB HBM3") == "gpu-h100"
-    assert bench_common.device_label("NVIDIA H200") == "gpu-h200"
+    assert common.device_label(None) == common.cpu_label()
+    assert common.device_label("NVIDIA H100 80GB HBM3") == "gpu-h100"
+    assert common.device_label("NVIDIA H200") == "gpu-h200"
 
 
 # ----------------------------------------------------------------------------- roofline
@@ -146,7 +146,7 @@ def test_roofline_arithmetic():
 
 
 def test_committed_roofline_matches_the_arithmetic():
-    path = ROOT / "benchmarks" / "results" / "roofline.json"
+    path = common.PERF_RESULTS / "roofline.json"
     if not path.exists():
         pytest.skip("no roofline.json committed")
     r = json.loads(path.read_text())
@@ -172,8 +172,6 @@ def rect_env():
 def test_c_benchmark_control_law_matches_the_jax_law(rect_env):
     """The MuJoCo C engine's law (``engines.CWorlds.law``: the NumPy reference on MuJoCo C
     arrays, with the env config's gains) gives the JAX law's torques on one perturbed state."""
-    from peghole_mjx._mjx import mjx
-
     m = rect_env.mj_model
     d = mujoco.MjData(m)
     mujoco.mj_resetDataKeyframe(m, d, m.key("inserted").id)
@@ -206,7 +204,7 @@ def test_c_benchmark_control_law_matches_the_jax_law(rect_env):
 
 def test_mujoco_c_control_step_extracts_like_the_mjx_env(rect_env):
     """The scripted pull in MuJoCo C + NumPy takes as long as in MJX (committed rollouts)."""
-    committed = json.loads((ROOT / "benchmarks" / "results" / "env_rollouts.json").read_text())
+    committed = json.loads((common.PERF_RESULTS / "env_rollouts.json").read_text())
     mjx_time = next(
         r["mean_time_s"]
         for r in committed["rows"]
@@ -227,8 +225,6 @@ def test_mujoco_c_control_step_extracts_like_the_mjx_env(rect_env):
 def pb_env():
     pytest.importorskip("pybullet")
     pytest.importorskip("gymnasium")
-    from benchmarks import pybullet_peghole
-
     env = pybullet_peghole.make_gym_env(seed=0)
     yield env
     env.close()
@@ -295,20 +291,20 @@ def test_pybullet_pushing_the_peg_reads_as_minus_the_contact_force(pb_env):
 
 # ----------------------------------------------------------------------------- readers
 def test_time_to_success_reader(tmp_path):
-    assert plot.time_to_success(tmp_path / "missing.json") is None
+    assert time_to_success.read_time_to_success(tmp_path / "missing.json") is None
     p = tmp_path / "r.json"
     p.write_text(
         json.dumps({"time_to_success_s": None, "budget_s": 600, "final_success_rate": 0.1})
     )
-    r = plot.time_to_success(p)
+    r = time_to_success.read_time_to_success(p)
     assert r["reached"] is False and r["time_s"] == 600
     p.write_text(json.dumps({"time_to_95_s": 42.0, "budget_s": 600}))
-    r = plot.time_to_success(p)
+    r = time_to_success.read_time_to_success(p)
     assert r["reached"] is True and r["time_s"] == 42.0
 
 
 def test_throughput_table_traces_to_the_csv(tmp_path):
-    bench_common.write_csv(
+    common.write_csv(
         tmp_path / "throughput_cpu-9core.csv",
         [
             _row(engine="mjx-jax", physics_steps_per_s=5000.0, env_steps_per_s=500.0),
@@ -316,24 +312,24 @@ def test_throughput_table_traces_to_the_csv(tmp_path):
             _row(engine="pybullet", physics_steps_per_s=1000.0, env_steps_per_s=100.0),
         ],
     )
-    table = readme_tables.throughput(tmp_path)
+    table = throughput.throughput_table(tmp_path)
     assert "| mjx-jax | rect | 1 | 5000.0 | 500.0 |" in table
     assert "--engines pybullet --scenes rect --worlds 1" in table
     assert "mjx-jax / mujoco-c-rollout = 2" in table
     assert "mjx-jax / one PyBullet process = 5" in table
     (tmp_path / "throughput_cpu-9core_quick.csv").write_text("not read")
-    assert readme_tables.throughput_csvs(tmp_path) == [tmp_path / "throughput_cpu-9core.csv"]
+    assert throughput.throughput_csvs(tmp_path) == [tmp_path / "throughput_cpu-9core.csv"]
 
 
 def test_plots_write_pngs(tmp_path):
     pytest.importorskip("matplotlib")
-    csv_path = bench_common.write_csv(
+    csv_path = common.write_csv(
         tmp_path / "throughput_cpu-9core.csv",
         [_row(worlds=w, physics_steps_per_s=100.0 * w) for w in (1, 4, 16)],
     )
     outs = plot.plot_throughput(csv_path, tmp_path)
     assert [o.name for o in outs] == ["throughput_cpu-9core_rect.png"]
-    out = plot.plot_time_to_success(tmp_path, results=tmp_path)
+    out = time_to_success.plot_time_to_success(tmp_path, results=tmp_path)
     assert out.exists() and outs[0].stat().st_size > 1000
 
 
@@ -416,8 +412,6 @@ def test_rl_vs_rlcs_over_seeds_gives_verdicts_from_intervals(tmp_path):
     assert fin["success_rate"][1] < 0 and fin["mean_time_s"] is None  # no times recorded
     assert sorted(p.name.endswith("_final.png") for p in out.glob("*.png")) == [False, True]
     # Welch's interval against scipy's own (equal_var=False) t statistic
-    from scipy import stats
-
     a, b = [1.0, 2.0, 3.0, 4.0], [2.0, 2.5, 5.0]
     lo, hi = rl_vs_rlcs.welch_interval(a, b)
     t = stats.ttest_ind(a, b, equal_var=False)
@@ -429,9 +423,7 @@ def test_committed_dual_per_episode_file_matches_the_published_evaluation():
     """The per-episode CSV behind the README's dual figures is the published dual evaluation's
     episodes, and its committed analysis (all episodes and jointly successful ones) is
     reproduced from it."""
-    import csv
-
-    res = ROOT / "benchmarks" / "results" / "dual_cpu-2core"
+    res = common.EVALS_RESULTS / "dual_cpu-2core"
     ev = json.loads((ROOT / "peghole_mjx/policies/dual_extract/evaluation.json").read_text())
     got = paired_reduction.analyse(res / "episodes256.csv", chosen_on=0)
     assert got["episodes"] == ev["episodes"]
@@ -480,7 +472,7 @@ def test_paired_reduction_over_jointly_successful_episodes(tmp_path):
 def test_committed_withdrawn_dual_analysis_is_reproduced_from_its_episodes():
     """The 0.5 N-bound evaluation (a bound set after training, withdrawn 2026-11-29) kept as
     history: its analysis follows from its episode file."""
-    res = ROOT / "benchmarks" / "results" / "dual_ffdeploy_cpu-2core"
+    res = common.EVALS_RESULTS / "dual_ffdeploy_cpu-2core"
     got = paired_reduction.analyse(res / "episodes1024.csv", chosen_on=64)
     committed = json.loads((res / "paired1024.json").read_text())
     for k in ("reduction_pct", "reduction_pct_not_chosen_on", "policy_mean_fz_N"):
@@ -489,14 +481,11 @@ def test_committed_withdrawn_dual_analysis_is_reproduced_from_its_episodes():
 
 
 def test_gpu_suite_runs_its_tiny_configuration_on_the_cpu(tmp_path):
-    """benchmarks/gpu_suite.sh --tiny: the one-command GPU script, CPU smoke run (the MuJoCo
-    C rows run; mjx-warp skips cleanly without a GPU / warp; no training)."""
-    import os
-    import subprocess
-
+    """benchmarks/perf/gpu_suite.sh --tiny: the one-command GPU script, CPU smoke run (the
+    MuJoCo C rows run; mjx-warp skips cleanly without a GPU / warp; no training)."""
     env = {**os.environ, "OUT": str(tmp_path), "PYTHONPATH": str(ROOT), "PYTHON": sys.executable}
     res = subprocess.run(
-        ["bash", str(ROOT / "benchmarks" / "gpu_suite.sh"), "--tiny"],
+        ["bash", str(ROOT / "benchmarks" / "perf" / "gpu_suite.sh"), "--tiny"],
         capture_output=True,
         text=True,
         env=env,
@@ -505,14 +494,14 @@ def test_gpu_suite_runs_its_tiny_configuration_on_the_cpu(tmp_path):
     assert res.returncode == 0, res.stderr[-2000:]
     log = (tmp_path / "gpu_suite.log").read_text()
     assert "[skip] mjx-warp" in log and "done in" in log
-    rows = bench_common.read_csv(tmp_path / "throughput_tiny.csv")
+    rows = common.read_csv(tmp_path / "throughput_tiny.csv")
     assert {(r["engine"], r["scene"]) for r in rows} == {("mujoco-c", "rect"), ("mujoco-c", "dual")}
     assert all(float(r["physics_steps_per_s"]) > 0 for r in rows)
 
 
 def test_scene_variants_name_a_representation():
-    assert bench_common.SCENES["dual-mesh"] == "DualExtract"
-    assert bench_common.SCENE_OVERRIDES["dual-mesh"] == {"representation": "mesh"}
+    assert common.SCENES["dual-mesh"] == "DualExtract"
+    assert common.SCENE_OVERRIDES["dual-mesh"] == {"representation": "mesh"}
     assert throughput.skip_reason("mjx-jax", "dual-cylinder", None) is not None
     assert throughput.skip_reason("mjx-jax", "dual-mesh", None) is None
 
@@ -522,8 +511,6 @@ def test_jammed_dual_contact_forces_match_the_oracle(monkeypatch):
     pull): the capsule and mesh scenes' mouth and tip contact forces and extraction forces are
     within 10 % of the quasi-static oracle's (MuJoCo C, a few seconds). The mesh's F_z holds
     only with MuJoCo C's multi-point CCD off (on: +37 to +105 %)."""
-    from benchmarks import capsule_fidelity
-
     monkeypatch.setattr(capsule_fidelity, "JAM_DEPTHS_MM", (25.0,))
     out = capsule_fidelity.jam(speed_mm_s=10.0, h0_mm=30.0)
     rel = out["relative_difference"]["25"]
@@ -569,16 +556,10 @@ def test_export_pairs_a_policy_only_evaluation_with_an_earlier_baseline(tmp_path
 
 
 def test_contact_caps_are_those_of_the_committed_measurement():
-    """``CONTACT_CAPS`` holds the measured maxima of benchmarks/results/contact_caps.json (one
-    source of truth), every scene in it was measured in its default env and, where it has
-    one, its hard variant, and every cap is above its measured maximum (or 0: none)."""
-    from peghole_mjx.geometry.mjcf import CONTACT_CAPS
-    from peghole_mjx.geometry.parts import (
-        DUAL_DEFAULT_REPRESENTATION,
-        RECT_DEFAULT_REPRESENTATION,
-    )
-
-    committed = json.loads((ROOT / "benchmarks/results/contact_caps.json").read_text())
+    """``CONTACT_CAPS`` holds the measured maxima of benchmarks/results/perf/contact_caps.json
+    (one source of truth), every scene in it was measured in its default env and, where it
+    has one, its hard variant, and every cap is above its measured maximum (or 0: none)."""
+    committed = json.loads((common.PERF_RESULTS / "contact_caps.json").read_text())
     summary = committed["summary"]
     assert {tuple(k.split("/")) for k in summary} == set(CONTACT_CAPS)
     default_scene_envs = {
@@ -596,8 +577,6 @@ def test_contact_caps_are_those_of_the_committed_measurement():
 
 
 def test_cross_engine_comparison_is_paired_and_flags_disagreement():
-    from benchmarks.cross_engine import compare, paired_difference
-
     a = {
         "success": np.ones(40),
         "mean_fz_N": np.linspace(1, 2, 40),
@@ -619,8 +598,7 @@ def test_cross_engine_comparison_is_paired_and_flags_disagreement():
 
 
 def test_time_to_success_result_names_its_engine():
-    from benchmarks.time_to_success import result_path
-
+    result_path = time_to_success.result_path
     assert result_path("RectExtract", "cpu-2core").name == "train_rect_cpu-2core.json"
     got = result_path("RectExtractHard", "cpu-2core", "mujoco").name
     assert got == "train_RectExtractHard_mujoco_cpu-2core.json"

@@ -1,5 +1,5 @@
 """The persistent XLA compilation cache that ``import peghole_mjx`` turns on
-(docs/reliability.md, "Compilation cache"): where it goes, how to move or disable it, and that
+(docs/guide/reliability.md, "Compilation cache"): where it goes, how to move or disable it, and that
 JAX's own variable wins."""
 
 from __future__ import annotations

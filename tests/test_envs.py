@@ -171,7 +171,7 @@ def test_random_actions_200_steps_no_nan_and_determinism(compiled_any):
 def test_rollouts_stay_below_the_contact_cap(compiled):
     """Every capped scene: the active contacts (distance <= 0) of scripted and random rollouts
     stay below the scene's ``max_contact_points`` (a rollout that reaches it may have lost
-    contacts; the caps are sized in benchmarks/results/contact_caps.json)."""
+    contacts; the caps are sized in benchmarks/results/perf/contact_caps.json)."""
     from peghole_mjx.geometry.check import numeric
     from peghole_mjx.geometry.mjcf import CONTACT_CAPS
 
@@ -289,7 +289,7 @@ def test_step_logs_named_reward_terms_that_sum_to_the_reward(rect_any):
 
 @pytest.mark.slow
 def test_scripted_baseline_solves_dual():
-    """The 64-episode runs of both envs are in benchmarks/results/env_rollouts.json.
+    """The 64-episode runs of both envs are in benchmarks/results/perf/env_rollouts.json.
 
     Steps the session's compiled dual env (no second multi-minute compile of a rollout graph)
     and records each world's first ``done``.

@@ -1,5 +1,5 @@
 """Fault injection and bad input: every case ends in one clear line (exit 2) or is handled,
-and nothing that existed before is lost or left half-written (docs/reliability.md).
+and nothing that existed before is lost or left half-written (docs/guide/reliability.md).
 
 Cheap by design: the CLI runs in-process, faults are injected by patching writes (a full disk
 is ``os.fsync`` raising ENOSPC), kills are simulated by the folders a kill leaves behind, and
@@ -26,9 +26,9 @@ import pytest
 
 from peghole_mjx import cli, fileio
 from peghole_mjx.errors import CorruptFileError, UserInputError
+from peghole_mjx.lock import RunLock, _proc_start
 from peghole_mjx.training import checkpoints
 from peghole_mjx.training.config import CONFIG_DIR, TrainConfig, load_train_config
-from peghole_mjx.training.lock import RunLock, _proc_start
 from peghole_mjx.validation import RANGES, dumps, json_safe
 from peghole_mjx.validation import loads as strict_json  # no bare NaN
 
@@ -504,22 +504,26 @@ def test_training_config_from_a_damaged_run_json():
 
 
 def test_train_config_owns_every_default_and_the_cli_agrees_with_python(tmp_path):
-    """TrainConfig holds the shared defaults (compliance strategy on); ``peghole train``
-    without flags and ``load_train_config`` from Python build the same config, but for the
-    physics engine the CLI picks (``--engine auto``: envs.engines.default_engine)."""
+    """TrainConfig holds the shared defaults, TRAINING_ENV_DEFAULTS the env entries training
+    sets (compliance strategy on); ``peghole train`` without flags and ``load_train_config``
+    from Python build the same config, but for the physics engine the CLI picks
+    (``--engine auto``: envs.engines.default_engine)."""
     from peghole_mjx.cli import build_parser
     from peghole_mjx.envs.engines import default_engine
     from peghole_mjx.training.cli import train_config_from_args
-    from peghole_mjx.training.config import default
+    from peghole_mjx.training.config import TRAINING_ENV_DEFAULTS, default
 
     auto = {"env.engine": default_engine()}
 
-    assert default("compliance_strategy") is True and default("learning_rate") == 3e-4
+    assert TRAINING_ENV_DEFAULTS["compliance_strategy"] is True
+    assert default("learning_rate") == 3e-4
+    assert "compliance_strategy" not in TrainConfig.__dataclass_fields__  # one home: the env
     for env in ("RectExtract", "DualExtract"):
         raw = json.loads((CONFIG_DIR / f"{env}.json").read_text())
         assert "common" not in raw  # no second copy of the shared defaults
         py = load_train_config(env, "quick", auto)
-        assert py.compliance_strategy is True and py.env_overrides["compliance_strategy"] is True
+        assert py.env_overrides["compliance_strategy"] is True
+        assert "compliance_strategy" not in py.as_dict()
         assert py.learning_rate == default("learning_rate")
         argv = ["train", "--env", env, "--quick", "--out", str(tmp_path / "run")]
         assert train_config_from_args(build_parser().parse_args(argv)) == py
@@ -528,17 +532,21 @@ def test_train_config_owns_every_default_and_the_cli_agrees_with_python(tmp_path
         )
         assert off == load_train_config(env, "quick", auto, compliance_strategy=False)
         assert off.env_overrides["compliance_strategy"] is False
-    # env.compliance_strategy is the same setting; a contradiction is refused
+    # --compliance-strategy is a shorthand of env.compliance_strategy; a contradiction is refused
     cfg = load_train_config("RectExtract", "quick", {"env.compliance_strategy": False})
-    assert cfg.compliance_strategy is False
+    assert cfg.env_overrides["compliance_strategy"] is False
     with pytest.raises(UserInputError, match="disagree"):
         load_train_config(
             "RectExtract", "quick", {"env.compliance_strategy": False}, compliance_strategy=True
         )
-    # a run.json written before the field resumes with the env override it trained with
+    # a run.json / policy.json written while TrainConfig had the field loads: read as the env
+    # override (both were always written equal); written before the field: the override alone
     old = load_train_config("RectExtract", "quick", compliance_strategy=False).as_dict()
-    del old["compliance_strategy"]
-    assert TrainConfig.from_dict(old).compliance_strategy is False
+    assert TrainConfig.from_dict(old).env_overrides["compliance_strategy"] is False
+    legacy = {**old, "compliance_strategy": False}
+    assert TrainConfig.from_dict(legacy) == TrainConfig.from_dict(old)
+    no_env = {**legacy, "env_overrides": {}}
+    assert TrainConfig.from_dict(no_env).env_overrides == {"compliance_strategy": False}
     with pytest.raises(UserInputError, match="compliance_strategy is True but env_overrides"):
         TrainConfig.from_dict({**old, "compliance_strategy": True})
 

@@ -1,6 +1,6 @@
 """Env config values, rollouts and the Gymnasium adapter: bad input ends in one clear line
 (exit 2) before any model is built or compiled, and a rollout with nothing but NaN worlds is
-a failure with its likely cause, not a result (docs/reliability.md).
+a failure with its likely cause, not a result (docs/guide/reliability.md).
 
 Cheap by design: the refusals happen when the env config is built (no scene, no JAX
 compilation); the all-NaN rollout is injected by replacing the batched run with one whose

@@ -1,6 +1,6 @@
 """Fault injection and bad input for the experiments (``peghole experiment sweep | compliance |
 contact-check``): every case ends in one clear line (exit 2) before any simulation, or is
-handled, with nothing lost or half-written (docs/reliability.md).
+handled, with nothing lost or half-written (docs/guide/reliability.md).
 
 Cheap by design: no physics runs. ``Extraction`` (the compiled scene) is replaced by a stand-in
 that fails the test if it is built where a refusal must come first, or by a fake whose slices
@@ -27,7 +27,7 @@ from peghole_mjx import fileio
 from peghole_mjx.experiments import compliance as cx
 from peghole_mjx.experiments import contact_check as cc
 from peghole_mjx.experiments import sweep
-from peghole_mjx.training.lock import _proc_start
+from peghole_mjx.lock import _proc_start
 
 TINY = ["experiment", "sweep", "--geometry", "rect", "--grid", "tiny"]
 

@@ -1,6 +1,6 @@
 """Geometry, CAD parts, analytic commands and benchmark outputs: bad input ends in one line
 (exit 2) before any work, and outputs are checked and written atomically
-(docs/reliability.md, the geometry rows).
+(docs/guide/reliability.md, the geometry rows).
 
 Cheap by design: no CoACD run (``run_coacd`` is replaced by a function that fails the test, or
 by a trivial hull where the write itself is tested), no IK or MuJoCo compile for a refusal, and
@@ -368,7 +368,7 @@ def test_decompose_writes_the_mjcf_and_report_together_or_neither(tmp_path, caps
 
 
 def test_benchmark_out_paths_are_checked_before_the_work(tmp_path, monkeypatch):
-    from benchmarks import bench_common
+    from benchmarks import common as bench_common
 
     (tmp_path / "d").mkdir()
     with pytest.raises(UserInputError, match="is a folder, not a file"):
@@ -392,7 +392,7 @@ def test_benchmark_out_paths_are_checked_before_the_work(tmp_path, monkeypatch):
 
 
 def test_benchmark_csv_is_written_atomically(tmp_path, monkeypatch):
-    from benchmarks import bench_common
+    from benchmarks import common as bench_common
 
     row = dict.fromkeys(bench_common.COLUMNS, "x")
     row["worlds"] = 1

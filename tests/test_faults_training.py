@@ -1,7 +1,7 @@
 """Training runs and ``peghole compare`` under faults: multi-seed resume, damaged states,
 memory and disk sized before any work, strict JSON outputs, the run lock on a full disk,
 ``--set`` keys that cannot be set, damaged metrics.csv / history.csv / run.json
-(docs/reliability.md). Every case ends in one line (exit 2) before any simulation, or is
+(docs/guide/reliability.md). Every case ends in one line (exit 2) before any simulation, or is
 handled with nothing lost.
 
 Cheap by design, as tests/test_faults.py: the CLI runs in-process; the file logic of a run
@@ -37,8 +37,8 @@ from test_faults import (
 
 from peghole_mjx import memory
 from peghole_mjx.errors import CorruptFileError, UserInputError
+from peghole_mjx.lock import RunLock, _proc_start
 from peghole_mjx.training import checkpoints
-from peghole_mjx.training.lock import RunLock, _proc_start
 from peghole_mjx.validation import loads as strict_json
 
 TINY_SETS = [f"--set={k}={v}" for k, v in TINY.items()]

@@ -1,11 +1,12 @@
 """The friction-model map: its worlds, pairing and admissibility rule (friction_frontier)."""
 
+import mujoco
 import numpy as np
 import pytest
 
-from benchmarks import friction_frontier as ff
-from benchmarks import pull_speed as ps
-from benchmarks.c_replica import pull_c
+from benchmarks.studies import friction_frontier as ff
+from benchmarks.studies import pull_speed as ps
+from benchmarks.studies.c_replica import pull_c
 from peghole_mjx.experiments import contact_check as cc
 
 
@@ -86,8 +87,6 @@ def test_the_replica_refuses_an_unknown_option():
 
 def test_every_variant_sets_real_options():
     """The variants' options exist on MuJoCo's mjOption (a typo would fail the map late)."""
-    import mujoco
-
     opt = mujoco.MjModel.from_xml_string("<mujoco/>").opt
     for tcf, extra, engines in ff.VARIANTS.values():
         assert tcf is None or tcf > 0

@@ -1,4 +1,5 @@
-"""The generalisation matrix (benchmarks/generalisation.py): cells, a tiny run and its resume."""
+"""The generalisation matrix (benchmarks/evals/generalisation.py): cells, a tiny run and its
+resume."""
 
 from __future__ import annotations
 
@@ -7,7 +8,7 @@ import json
 
 import pytest
 
-from benchmarks import generalisation
+from benchmarks.evals import generalisation
 from peghole_mjx.errors import UserInputError
 from peghole_mjx.geometry.specs import PRESETS, get_preset, with_changes
 

@@ -1,5 +1,5 @@
 """RectExtractHard and DualExtractHard: registered, defined by their levers only, and hard for the
-scripted Ch 2-3 method (docs/training.md, "Hard variants")."""
+scripted Ch 2-3 method (docs/index.md, "Hard variants")."""
 
 import numpy as np
 import pytest

@@ -6,7 +6,7 @@ import sys
 import numpy as np
 import pytest
 
-from benchmarks import policy_trace as pt
+from benchmarks.studies import policy_trace as pt
 
 
 def _arrays(steps=4, n=3):
@@ -59,7 +59,7 @@ def test_a_component_just_under_the_bound_is_not_at_it():
 
 def test_an_unknown_policy_is_one_line_and_exit_2():
     res = subprocess.run(
-        [sys.executable, "-m", "benchmarks.policy_trace", "--policy", "no_such_policy"],
+        [sys.executable, "-m", "benchmarks.studies.policy_trace", "--policy", "no_such_policy"],
         capture_output=True,
         text=True,
     )

@@ -5,8 +5,8 @@ import json
 import numpy as np
 import pytest
 
-from benchmarks import pull_speed as ps
-from benchmarks.c_replica import COLUMNS, ENGINE, pull_c
+from benchmarks.studies import pull_speed as ps
+from benchmarks.studies.c_replica import COLUMNS, ENGINE, pull_c
 from peghole_mjx.experiments import compliance as cx
 from peghole_mjx.experiments import contact_check as cc
 from peghole_mjx.experiments import sweep as sw
@@ -19,7 +19,7 @@ def test_c_replica_holds_the_standard_case_at_the_oracle_force():
     assert trace.shape[1] == len(COLUMNS) and np.all(np.isfinite(trace))
     row = ps.summarise(trace, settle, dt, cx.EARLY_MM["rect"])
     tab = {k: np.array([v]) for k, v in cc.STANDARD_CASE.items()}
-    h0 = sw._h0_mm("rect-2", cx.ExperimentConfig())
+    h0 = sw.h0_mm("rect-2", cx.ExperimentConfig())
     oracle = cx.quasi_static_peaks(cx.quasi_static("rect-2", cc.STANDARD_MU, tab, h0), h0, 5.0)
     assert row["peak_fz_late_N"] == pytest.approx(float(oracle[0]), rel=0.10)
     assert row["both_walls_frac_in_two_point"] >= 0.9
@@ -32,7 +32,7 @@ def test_c_replica_meets_the_oracle_on_the_dual_meshes_when_slow():
     multi-point CCD on (its default) the replica read 0.121 N."""
     c = ps.cell(3.0, -0.2, "dual")
     tab = ps.worlds_at(c, 1)
-    cfg = ps._config("dual", 0.5, None)
+    cfg = ps.experiment_config("dual", 0.5, None)
     trace, settle, dt = pull_c(c["preset"], ps.MU, ps.world(tab, 0), 0.5e-3, cfg)
     row = ps.summarise(trace, settle, dt, cx.EARLY_MM["dual"])
     oracle = float(ps.oracle_late_peaks(c, tab)[0])
@@ -115,22 +115,22 @@ def test_the_tilt_plan_commands_the_thesis_tilt_in_every_world():
 
 
 def test_the_speed_figure_draws_from_the_committed_results(tmp_path):
-    rect = json.loads((ps.RESULTS / "pull_speed_rect.json").read_text())
+    rect = json.loads((ps.STUDIES_RESULTS / "pull_speed_rect.json").read_text())
     out = ps.write_figure(rect, None, tmp_path / "f.png")
     assert out.stat().st_size > 10_000
 
 
 def test_every_mjx_check_has_its_committed_row_and_c_twin():
-    doc = json.loads((ps.RESULTS / "pull_speed_mjx.json").read_text())
-    keys = [ps._check_key(r) for r in doc["rows"]]
-    assert sorted(keys) == sorted(ps._check_key(c) for c in ps.MJX_CHECKS)
+    doc = json.loads((ps.STUDIES_RESULTS / "pull_speed_mjx.json").read_text())
+    keys = [ps.check_key(r) for r in doc["rows"]]
+    assert sorted(keys) == sorted(ps.check_key(c) for c in ps.MJX_CHECKS)
     for r in doc["rows"]:
-        c = ps.cell(r["k_rot_Nm_rad"], r["beta0_deg"], ps._plan(r))
+        c = ps.cell(r["k_rot_Nm_rad"], r["beta0_deg"], ps.plan_of(r))
         assert r["preset"] == c["preset"]
         assert len(r["c_float64_peak_fz_late_N"]) == len(r["peak_fz_late_N"]) == ps.MJX_REPEATS
         assert r["c_engine"] == ENGINE  # the twin of the replica as it is now
         # the oracle column is the oracle of the very worlds the check pulls
         np.testing.assert_allclose(
-            ps.oracle_late_peaks(c, ps.worlds_at(c, ps.MJX_REPEATS, ps._at(r))),
+            ps.oracle_late_peaks(c, ps.worlds_at(c, ps.MJX_REPEATS, ps.at_of(r))),
             r["oracle_peak_fz_late_N"],
         )

@@ -1,11 +1,11 @@
-"""The quasi-static oracle's R2 map over the full dual grid (benchmarks/r2_map.py)."""
+"""The quasi-static oracle's R2 map over the full dual grid (benchmarks/studies/r2_map.py)."""
 
 import json
 
 import pytest
 
-from benchmarks import pull_speed as ps
-from benchmarks import r2_map as rm
+from benchmarks.studies import pull_speed as ps
+from benchmarks.studies import r2_map as rm
 
 
 def test_classes_follow_the_intervals():
@@ -31,7 +31,7 @@ def test_the_committed_map_backs_the_tilt_plan():
     """The dual_tilt plan was chosen from the map: at dual-2, mu 0.266, K_x 300 N/m, every cell
     where the oracle resolves R2's ordering within the caps is on the tilt arm, and the plan
     holds those of them at delta0 2 mm."""
-    doc = json.loads((ps.RESULTS / "r2_map.json").read_text())
+    doc = json.loads((ps.STUDIES_RESULTS / "r2_map.json").read_text())
     assert len(doc["cells"]) == len(rm.GRID.cells())
     ordered = [
         c

@@ -1,5 +1,5 @@
-"""The README and docs: generated result tables up to date, the quick start's two commands,
-every CLI command documented, every relative link resolving."""
+"""The README and docs: generated result tables up to date, the quick start's two commands and
+the CI script that runs them, every CLI command documented, every relative link resolving."""
 
 import re
 import subprocess
@@ -9,9 +9,9 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parents[1]
 
 
-def test_readme_tables_match_committed_results():
+def test_docs_tables_match_committed_results():
     res = subprocess.run(
-        [sys.executable, "-m", "benchmarks.readme_tables", "--check"],
+        [sys.executable, "-m", "benchmarks.tables", "--check"],
         cwd=ROOT,
         capture_output=True,
         text=True,
@@ -19,13 +19,34 @@ def test_readme_tables_match_committed_results():
     assert res.returncode == 0, res.stdout + res.stderr
 
 
+def _ci_commands() -> list[str]:
+    """The commands of .ci/run (comments, blank lines and shell setup left out)."""
+    lines = (ROOT / ".ci" / "run").read_text().splitlines()
+    skip = ("#", "set ", "cd ", "export ", "echo ")
+    return [line.strip() for line in lines if line.strip() and not line.strip().startswith(skip)]
+
+
 def test_ci_runs_the_readme_test_command_verbatim():
     readme = (ROOT / "README.md").read_text()
-    ci = (ROOT / ".ci" / "run").read_text()
     block = readme.split("```bash", 1)[1].split("```", 1)[0].strip().splitlines()
     assert len(block) == 2, "the quick start has exactly two commands"
     test_cmd = next(line for line in block if "pytest" in line)
-    assert test_cmd in ci.splitlines()
+    commands = _ci_commands()
+    assert test_cmd in commands
+    # nothing is installed before it: the README's command alone sets up a fresh machine
+    before = commands[: commands.index(test_cmd)]
+    assert not [c for c in before if "pip" in c and "install" in c], before
+
+
+def test_ci_runs_the_optional_playground_suite_after_the_readme_command_as_the_readme_says():
+    readme = (ROOT / "README.md").read_text()
+    commands = _ci_commands()
+    readme_cmd = next(c for c in commands if c.endswith("python3 -m pytest -q"))
+    after = commands[commands.index(readme_cmd) + 1 :]
+    install = '--no-deps "playground>=0.2.0" "lxml>=5"'
+    assert any(install in c for c in after), after
+    assert "python3 -m pytest -q tests/test_playground.py" in after
+    assert f"pip install {install}" in readme and "tests/test_playground.py" in readme
 
 
 def test_quick_start_main_job_is_the_demo():
@@ -45,7 +66,7 @@ def test_every_cli_command_is_documented_in_the_readme():
 
 
 def test_relative_links_of_the_readme_and_docs_resolve():
-    files = [ROOT / "README.md", *sorted((ROOT / "docs").glob("*.md"))]
+    files = [ROOT / "README.md", *sorted((ROOT / "docs").rglob("*.md"))]
     missing = []
     for md in files:
         for target in re.findall(r"\]\(([^)\s]+)\)", md.read_text()):

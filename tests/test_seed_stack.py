@@ -1,11 +1,15 @@
 """The seed-stack comparison: the env option reaching the PyBullet sim, its config check, the
 time-to-success threshold and ratio, and the dual peg's convex-hull collision in PyBullet."""
 
+import json
+
 import numpy as np
 import pytest
 
-from benchmarks import seed_stack, time_to_success
-from benchmarks.time_to_success import compare
+from benchmarks.baselines import seed_stack, time_to_success
+from benchmarks.baselines.pybullet_peghole import check_config, make_gym_env
+from benchmarks.baselines.time_to_success import compare
+from benchmarks.studies.seed_stack_dual_hull import run_both
 from peghole_mjx.control.reference import rotvec_from_mat
 from peghole_mjx.envs import get_default_config
 from peghole_mjx.envs.rect_extract import HARD_ANGULAR_ERROR_DEG
@@ -69,8 +73,6 @@ def test_result_names_keep_the_default_env_files():
 def test_result_files_take_each_envs_training_results_only(tmp_path):
     """Files are told apart by their own fields: a pre-``--env`` file is RectExtract's, and the
     dual-hull result (no ``stack``) is never a training result."""
-    import json
-
     files = {
         "seed_stack_cpu-2core.json": {"stack": "sb3"},
         "seed_stack_gpu-h100.json": {"stack": "sb3", "env": "RectExtract"},
@@ -101,8 +103,6 @@ def test_unknown_env_is_one_clear_line(capsys):
 
 def test_config_entries_the_sim_cannot_honour_are_refused():
     pytest.importorskip("pybullet")
-    from benchmarks.pybullet_peghole import check_config
-
     check_config(get_default_config("RectExtractHard"))  # every entry accounted for
     c = get_default_config("RectExtract")
     c.compliance_strategy = True
@@ -126,8 +126,6 @@ def test_env_option_reaches_the_pybullet_sim():
     """RectExtractHard: rect-3 and its +-4 deg tilt error drive the sim (RectExtract: rect-2)."""
     pytest.importorskip("pybullet")
     pytest.importorskip("gymnasium")
-    from benchmarks.pybullet_peghole import make_gym_env
-
     tilts = {}
     for env_name, preset in (("RectExtract", "rect-2"), ("RectExtractHard", "rect-3")):
         env = make_gym_env(env_name, seed=0)
@@ -150,8 +148,6 @@ def test_env_option_reaches_the_pybullet_sim():
 def test_dual_hull_penetrates_where_the_compound_fits():
     """One short run each: the hull overlaps the hole block at the start pose, the pieces fit."""
     pytest.importorskip("pybullet")
-    from benchmarks.seed_stack_dual_hull import run_both
-
     hull, compound = run_both(hold_s=0.2, pull_s=0.05)
     assert hull["peg_model"] == "hull" and compound["peg_model"] == "compound"
     assert hull["start_penetration_mm"] > compound["start_penetration_mm"] + 1.0

@@ -387,7 +387,7 @@ def test_every_registered_env_has_a_training_config_for_every_profile():
             assert cfg.env == env and cfg.profile == profile
 
 
-#: RectExtractHard's training settings beyond RectExtract's (docs/training.md, "Four recipes")
+#: RectExtractHard's training settings beyond RectExtract's (docs/research/index.md, "Four recipes")
 RECT_HARD_ADDED = {
     "action.max_ff_xy_N": 2.0,
     "obs.commands": True,

@@ -1,7 +1,7 @@
 """Training entry point, the same as ``peghole train`` (run from a checkout without installing
 the console script): ``python train/train.py --env RectExtract --quick --out runs/q``.
 
-Hyperparameters: ``train/configs/<ENV>.json``; documentation: ``docs/training.md``.
+Hyperparameters: ``train/configs/<ENV>.json``; documentation: ``docs/guide/training.md``.
 """
 
 import sys

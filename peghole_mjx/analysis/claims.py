@@ -7,6 +7,13 @@ A verdict needs the claimed direction *and* a material size: a change counts whe
 ``MATERIAL`` (1 %) of the region length. Where the thesis's rotational stiffness hides an
 effect, the evidence adds a check at a compliant rotational stiffness (``sensitivity``); the
 verdict stays the one at the thesis's values.
+
+A claim not reproduced there carries its ``regime``: where it was checked again and whether
+it holds there, by the same criterion (C2.2, C2.3, C3.2, C3.4 at :data:`COMPLIANT_DUAL` /
+:data:`COMPLIANT_RECT`, erratum E12), or why no regime applies (C2.1, C3.1: counts of contact
+states; C2.5: a claim about the stiffness ranges themselves). ``peghole analyze claims`` ends
+with :func:`summary_lines`. Decided 2026-12-02: the command listed verdicts without saying
+where a claim not reproduced at the printed parameters does hold, which the evidence knew.
 """
 
 from __future__ import annotations
@@ -23,14 +30,40 @@ from peghole_mjx.geometry.specs import get_preset, with_changes
 
 MATERIAL = 0.01
 DEG = math.pi / 180
+#: the thesis's parameters at which each verdict is taken (the module doc)
+THESIS_PARAMETERS = (
+    "dual-2: K_x 0.4 N/mm, K_theta 30e4 N mm/rad, delta0 2 mm, theta0 -0.9 deg; rect-1: "
+    "K_X = K_Y 0.3 N/mm, K_theta = K_phi = K_psi 30e4 N mm/rad, delta_X = delta_Y 2 mm"
+)
+#: the compliant rotational stiffnesses at which a claim that the thesis's 30e4 N mm/rad hides
+#: is checked again (the sensitivity rows of Figs 2.11 and 3.12). Erratum E12: the
+#: experiments' K_theta is never stated, and at 30e4 N mm/rad K_x L_C^2 is 45-300x smaller than
+#: K_theta, so the peg keeps its rest tilt and L_C and the errors barely matter.
+COMPLIANT_DUAL = {"K_theta_Nmm_per_rad": 1e3}
+COMPLIANT_RECT = {"K_theta_Nmm_per_rad": 5e3, "K_phi_Nmm_per_rad": 5e3}
+COMPLIANT_DUAL_TEXT = "K_theta 1e3 N mm/rad (300x softer than the thesis's 30e4; erratum E12)"
+COMPLIANT_RECT_TEXT = (
+    "K_theta = K_phi 5e3 N mm/rad (60x softer than the thesis's 30e4; erratum E12)"
+)
+#: the L_C grids of the compliant re-checks of C2.2 and C3.2, mm
+DUAL_LC_GRID = (0.0, 5.0, 10.0, 15.0, 20.0, 30.0, 40.0, 50.0)
+RECT_LC_GRID = (0.0, 15.0, 30.0, 60.0, 90.0, 120.0, 150.0)
+#: the compliance centre of the compliant re-check of C3.4 ("L_C near the tip"): at L_C 0 the
+#: compliant rect regions vanish, at 30 mm (a fifth of the peg) they exist, mm
+RECT_NEAR_TIP_MM = 30.0
 
 
 @dataclass
 class Claim:
+    """A claim's verdict at the thesis's parameters, its evidence and, for one not reproduced
+    there, ``regime``: where it was checked again (``checked``, None: nowhere), whether it
+    holds there (``holds``) and what was found (``detail``)."""
+
     id: str
     statement: str
     reproduced: bool
     evidence: dict[str, Any]
+    regime: dict[str, Any] | None = None
 
     def as_dict(self) -> dict[str, Any]:
         return {
@@ -38,7 +71,12 @@ class Claim:
             "statement": self.statement,
             "reproduced": bool(self.reproduced),
             "evidence": self.evidence,
+            "regime": None if self.reproduced else self.regime,
         }
+
+
+def _regime(checked: str | None, holds: bool | None, detail: str) -> dict[str, Any]:
+    return {"checked": checked, "holds": holds, "detail": detail}
 
 
 def _r(x, nd=4):
@@ -63,6 +101,96 @@ def _mid(lo, hi):
 def _shrinks(a, b):
     """Length ``a`` is materially smaller than ``b``."""
     return b > 0 and (b - a) > MATERIAL * b
+
+
+def _lc_trend(region, cases: dict[str, Any], grid, **kw) -> tuple[bool, dict[str, Any]]:
+    """Whether, for every case (``{key: argument}``), the region ``region(argument, L_C,
+    **kw)`` shrinks
+    materially as L_C goes from ``grid[-1]`` to ``grid[0]``, never growing on the way (by
+    more than :data:`MATERIAL` of the largest), and its middle depth moves toward the mouth
+    (shallower) while it exists; with the lengths and middles per case."""
+    ok, ev = True, {}
+    for name, arg in cases.items():
+        rows = [(L, *region(arg, L, **kw)) for L in grid]
+        lens = [r[1] for r in rows]
+        top = max(max(lens), 1e-9)
+        mono = all(a <= b + MATERIAL * top for a, b in itertools.pairwise(lens))
+        mids = [_mid(r[2], r[3]) for r in rows if r[1] > 0]
+        to_mouth = all(a <= b + MATERIAL * top for a, b in itertools.pairwise(mids)) and (
+            len(mids) >= 2 and mids[-1] - mids[0] > MATERIAL * top
+        )
+        good = mono and _shrinks(lens[0], lens[-1]) and to_mouth
+        ok &= good
+        ev[name] = {
+            "L_C_mm": list(grid),
+            "length_mm": [_r(x) for x in lens],
+            "mid_mm_where_nonempty": [_r(x) for x in mids],
+            "holds": good,
+        }
+    return ok, ev
+
+
+def _trend_detail(ev: dict[str, Any]) -> str:
+    """``state_5: the region shrinks from 45.2 mm (L_C 50) to 0 (L_C <= 10) ...``: the first
+    case of a :func:`_lc_trend` that held, or the cases where it did not."""
+    failed = [k for k, v in ev.items() if not v["holds"]]
+    if failed:
+        return f"it does not hold in {', '.join(failed)}"
+    first = next(iter(ev.values()))
+    lcs, lens, mids = first["L_C_mm"], first["length_mm"], first["mid_mm_where_nonempty"]
+    empty = [L for L, x in zip(lcs, lens, strict=True) if not x]
+    if not empty:
+        gone = f"{lens[0]:.1f} mm (L_C {lcs[0]:g})"
+    elif len(empty) == 1:
+        gone = f"0 (L_C {empty[0]:g})"
+    else:
+        gone = f"0 (L_C <= {max(empty):g})"
+    return (
+        f"{next(iter(ev))}: the region shrinks from {lens[-1]:.1f} mm (L_C {lcs[-1]:g}) to "
+        f"{gone} and its middle moves toward the mouth ({mids[-1]:.1f} -> {mids[0]:.1f} mm "
+        "deep)"
+    )
+
+
+def _delta_trend(
+    region, cases: dict[str, Any], L_C: float, values, names=("delta0_mm",)
+) -> tuple[bool, dict[str, Any]]:
+    """Whether every case's region at ``L_C`` and the compliant stiffness of its geometry
+    (:data:`COMPLIANT_DUAL` for :func:`_dual`, else :data:`COMPLIANT_RECT`) shrinks
+    materially, never growing, as each lateral error ``names`` runs through ``values``."""
+    kw = COMPLIANT_DUAL if region is _dual else COMPLIANT_RECT
+    ok, ev = True, {}
+    for key, arg in cases.items():
+        for name in names:
+            lens = [region(arg, L_C, **{name: x}, **kw)[0] for x in values]
+            mono = all(b <= a + 1e-9 for a, b in itertools.pairwise(lens))
+            good = mono and _shrinks(lens[-1], lens[0])
+            ok &= good
+            ev[f"{key}_{name}"] = {
+                "values_mm": list(values),
+                "length_mm": [_r(x) for x in lens],
+                "shrinks": good,
+            }
+    return ok, ev
+
+
+def _delta_detail(ev: dict[str, Any], where: str) -> str:
+    """What a :func:`_delta_trend` found, in words."""
+    good = [k for k, v in ev.items() if v["shrinks"]]
+    bad = [k for k, v in ev.items() if not v["shrinks"]]
+    if not good:
+        return f"at {where} the region shrinks as the error grows in none of {', '.join(bad)}"
+    ex = ev[good[0]]
+    example = (
+        f"{good[0]}: {' -> '.join(f'{x:.1f}' for x in ex['length_mm'])} mm for "
+        f"{' -> '.join(f'{x:g}' for x in ex['values_mm'])} mm"
+    )
+    if not bad:
+        return f"at {where} the region shrinks as the error grows in every case ({example})"
+    return (
+        f"at {where} the region shrinks as the error grows in {', '.join(good)} ({example}), "
+        f"not in {', '.join(bad)}"
+    )
 
 
 # ------------------------------------------------------------------------------------- claims
@@ -95,7 +223,13 @@ def c2_1() -> Claim:
         "Dual: 13 contact states (Table 2.1); three- and four-point contacts occur only at "
         "isolated depths.",
         n == 13 and isolated_ok,
-        {
+        regime=_regime(
+            None,
+            None,
+            "a count of the geometry's contact states, which no stiffness or error changes: no "
+            "regime to check",
+        ),
+        evidence={
             "method": "exact-geometry enumeration of all subsets of <= 4 of the 8 candidate "
             "contacts, over the preset and two generic variants (D_P = D_H +- 0.1 mm), up to "
             "mirror symmetry",
@@ -138,12 +272,16 @@ def c2_2() -> Claim:
             "L_C_50_mid_mm": _r(_mid(sb[1], sb[2])),
         }
     ev["sensitivity_K_theta_1e3_Nmm_per_rad"] = sens
+    cats = {f"state_{cat}": cat for cat in dual.CATEGORIES}
+    holds, trend = _lc_trend(_dual, cats, DUAL_LC_GRID, **COMPLIANT_DUAL)
+    ev["compliant_L_C_trend"] = trend
     return Claim(
         "C2.2",
         "Dual: the two-point contact region shrinks as L_C goes to 0 and moves "
         "toward the hole mouth (Fig 2.11).",
         ok,
         ev,
+        _regime(COMPLIANT_DUAL_TEXT, holds, _trend_detail(trend)),
     )
 
 
@@ -158,12 +296,15 @@ def c2_3() -> Claim:
         ev[f"state_{cat}"] = {"delta0_mm": d, "length_mm": [_r(x) for x in lens], "shrinks": good}
     sens = [_dual("5", 0.0, delta0_mm=x, K_theta_Nmm_per_rad=1e3)[0] for x in d]
     ev["sensitivity_state_5_K_theta_1e3"] = [_r(x) for x in sens]
+    holds, compliant = _delta_trend(_dual, {f"state_{c}": c for c in dual.CATEGORIES}, 0.0, d)
+    ev["compliant_delta0_trend"] = compliant
     return Claim(
         "C2.3",
         "Dual: with L_C near the tip, the region shrinks as the lateral error "
         "delta0 grows (Figs 2.12-2.14).",
         ok,
         ev,
+        _regime(COMPLIANT_DUAL_TEXT, holds, _delta_detail(compliant, "L_C 0")),
     )
 
 
@@ -220,6 +361,12 @@ def c2_5() -> Claim:
         "K_theta; stiffness matters little (Figs 2.16-2.18).",
         ok_kx and ok_kt and small,
         ev,
+        _regime(
+            None,
+            None,
+            "a claim about the stiffness ranges of Figs 2.16-2.18 themselves: not checked at "
+            "other stiffnesses",
+        ),
     )
 
 
@@ -244,7 +391,13 @@ def c3_1() -> Claim:
         "C3.1",
         "Rect: 26 contact states, 16 distinct, 8 of them jamming, in 5 groups (Fig 3.4).",
         ok,
-        {
+        regime=_regime(
+            None,
+            None,
+            "a count of the geometry's contact states, which no stiffness or error changes: no "
+            "regime to check",
+        ),
+        evidence={
             "method": "exact support sets of the inserted peg for every rotation sign pattern "
             "and set of touched walls (four-wall wedging excluded), up to the mirror "
             "symmetries",
@@ -282,12 +435,16 @@ def c3_2() -> Claim:
             "L_C_150_mid_mm": _r(_mid(sb[1], sb[2])),
         }
     ev["sensitivity_K_theta_K_phi_5e3_Nmm_per_rad"] = sens
+    cases = {f"case_{case}": case for case in (1, 2, 3)}
+    holds, trend = _lc_trend(_rect, cases, RECT_LC_GRID, **COMPLIANT_RECT)
+    ev["compliant_L_C_trend"] = trend
     return Claim(
         "C3.2",
         "Rect: cases 1-3: the region shrinks and moves toward the mouth as L_C "
         "goes to 0 (Fig 3.12).",
         ok,
         ev,
+        _regime(COMPLIANT_RECT_TEXT, holds, _trend_detail(trend)),
     )
 
 
@@ -325,12 +482,21 @@ def c3_4() -> Claim:
                 "length_mm": [_r(x) for x in lens],
                 "shrinks": good,
             }
+    cases = {f"case_{case}": case for case in (1, 2, 3)}
+    names = ("delta_x_mm", "delta_y_mm")
+    holds, compliant = _delta_trend(_rect, cases, RECT_NEAR_TIP_MM, d, names)
+    ev["compliant_delta_trend"] = compliant
     return Claim(
         "C3.4",
         "Rect: with L_C near the tip, the region shrinks as the lateral errors "
         "grow (Figs 3.13-3.18).",
         ok,
         ev,
+        _regime(
+            COMPLIANT_RECT_TEXT,
+            holds,
+            _delta_detail(compliant, f"L_C {RECT_NEAR_TIP_MM:g} mm"),
+        ),
     )
 
 
@@ -368,5 +534,36 @@ ALL = (c2_1, c2_2, c2_3, c2_4, c2_5, c3_1, c3_2, c3_3, c3_4, c3_5)
 
 
 def evaluate() -> list[dict[str, Any]]:
-    """Evaluate every analytic claim; a list of ``{id, statement, reproduced, evidence}``."""
+    """Evaluate every analytic claim; a list of ``{id, statement, reproduced, evidence,
+    regime}`` (``regime``: None for a reproduced claim, see :class:`Claim`)."""
     return [f().as_dict() for f in ALL]
+
+
+def regime_text(claim: dict[str, Any]) -> str:
+    """Where a claim not reproduced at the thesis's parameters holds, in words: ``holds at
+    <parameters>: <what was found>``, ``does not hold at <parameters> either: ...``, or the
+    reason no regime was checked."""
+    reg = claim.get("regime") or {}
+    if reg.get("checked") is None:
+        return reg.get("detail") or "no regime checked"
+    verdict = "holds at" if reg.get("holds") else "does not hold at"
+    either = "" if reg.get("holds") else " either"
+    return f"{verdict} {reg['checked']}{either}: {reg['detail']}"
+
+
+def summary_lines(result: list[dict[str, Any]]) -> list[str]:
+    """The end of ``peghole analyze claims``: the count reproduced / not at the thesis's
+    parameters, then one line per claim; for one not reproduced, where it holds if anywhere
+    (:func:`regime_text`)."""
+    n_ok = sum(bool(c["reproduced"]) for c in result)
+    lines = [
+        f"Summary: {n_ok} reproduced, {len(result) - n_ok} not reproduced at the thesis's "
+        f"parameters ({THESIS_PARAMETERS}).",
+    ]
+    width = max((len(c["id"]) for c in result), default=0)
+    for c in result:
+        if c["reproduced"]:
+            lines.append(f"  {c['id']:<{width}}  reproduced")
+        else:
+            lines.append(f"  {c['id']:<{width}}  not reproduced; {regime_text(c)}")
+    return lines

@@ -78,7 +78,7 @@ def check_angle(name: str, value) -> np.ndarray:
         if math.isclose(abs(bad), 0.9, rel_tol=1e-3):
             hint = (
                 f"; the thesis's '-0.9 rad' is -0.9 deg = {THETA0_RAD:.5f} rad "
-                "(erratum E3, docs/errata.md)"
+                "(erratum E3, docs/research/errata.md)"
             )
         raise UserInputError(
             f"{name} = {bad:g} rad is outside the small-angle model (|angle| <= "

@@ -18,7 +18,7 @@ The categories of Fig 2.5, each a :class:`~.planar.ContactPair` in its "+" confi
   between the holes (width ``D_H - R_H1 - R_H2 = 2R'``) plays the peg, the gap between the
   pegs (``D_P - r_P1 - r_P2 = 2r'``) the hole.
 
-Closed forms (re-derived, docs/analysis.md): boundary quadratics (2.14), (2.29), (2.43) via
+Closed forms (re-derived, docs/research/analysis.md): boundary quadratics (2.14), (2.29), (2.43) via
 :func:`.planar.boundary_quadratics`; two-point forces (2.19)-(2.20), (2.33)-(2.34), (2.48) via
 :func:`.planar.two_point_forces`; one-point forces (2.17)-(2.18), (2.21), (2.31)-(2.32),
 (2.35), (2.46)-(2.47), (2.49) via :func:`.planar.one_point_tip` / :func:`.planar.one_point_mouth`.
@@ -55,7 +55,7 @@ DEFAULTS = dict(
     beta0_rad=0.0,
     theta0_rad=common.THETA0_RAD,
 )
-#: Geometry of the analytic studies: Table 2.2 sample 2 (r = 6.0 mm; see docs/analysis.md).
+#: Geometry of the analytic studies: Table 2.2 sample 2 (r = 6.0 mm; see docs/research/analysis.md).
 FIGURE_PRESET = "dual-2"
 
 

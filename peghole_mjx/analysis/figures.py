@@ -14,15 +14,18 @@ from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 
+import matplotlib
+import matplotlib.pyplot as plt
 import numpy as np
 
+from peghole_mjx import fileio
 from peghole_mjx.analysis import common, dual, rect
 from peghole_mjx.errors import UserInputError
 from peghole_mjx.geometry.specs import get_preset
 
 DEG = math.pi / 180.0
 #: Rotational stiffness of the sensitivity panels (comparable to K_x L^2): shows the
-#: compliance-centre effect that the thesis's 30e4 N mm/rad suppresses (docs/analysis.md).
+#: compliance-centre effect that the thesis's 30e4 N mm/rad suppresses (docs/research/analysis.md).
 SENS_K_THETA_DUAL = 1e3
 SENS_RECT = {"K_theta_Nmm_per_rad": 5e3, "K_phi_Nmm_per_rad": 5e3}
 
@@ -342,10 +345,7 @@ def resolve(fig_id: str) -> list[str]:
 
 
 def _plot(path: Path, fam: Family, panels: list[Panel]) -> None:
-    import matplotlib
-
     matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
 
     n = len(panels)
     ncol = 3 if n % 3 == 0 else min(n, 4)
@@ -390,7 +390,6 @@ def _plot(path: Path, fam: Family, panels: list[Panel]) -> None:
         fontsize=9,
     )
     fig.tight_layout()
-    from peghole_mjx import fileio
 
     with fileio.atomic_open(path, "wb") as fh:  # a failed write keeps the old figure
         fig.savefig(fh, dpi=110 if n <= 6 else 80, format="png")
@@ -410,7 +409,6 @@ def write_family(fig_id: str, out_dir: str | Path) -> tuple[Path, Path]:
         for k in r:
             if k not in keys:
                 keys.append(k)
-    from peghole_mjx import fileio
 
     with fileio.atomic_open(csv_path, "w") as fh:
         w = csv.DictWriter(fh, fieldnames=keys)

@@ -34,7 +34,7 @@ Exact two-point geometry (thesis eq 2.8 generalised)::
 where ``s`` is the axial distance from the tip line to contact A (the thesis's ``h``). Its
 small-angle form ``s theta = 2 c`` with ``2c = w_h - w_p`` is the thesis's eq 2.9.
 
-Statics of the two-point state (re-derived; see docs/analysis.md)::
+Statics of the two-point state (re-derived; see docs/research/analysis.md)::
 
     F_sx + N_A (cos t + mu sin t) - N_B = 0
     M_s + N_A tau_A + N_B tau_B + tau_3 = 0

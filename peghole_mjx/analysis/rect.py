@@ -4,7 +4,7 @@ Axes (Figs 3.2, 3.5): the hole is ``w`` (along ``y``) by ``v`` (along ``x``), th
 ``v'``; ``theta``, ``phi``, ``psi`` are rotations about ``x``, ``y``, ``z``. The compliance
 centre lies on the peg axis ``L_C`` above the tip (``L_C = 0``: at the peg end).
 
-Every case is re-derived (docs/analysis.md); none of the printed coefficient sets is used:
+Every case is re-derived (docs/research/analysis.md); none of the printed coefficient sets is used:
 
 * **case 1, two-point contact** (Fig 3.4a, root eq 3.23): the peg tilts in the ``y-z`` plane
   (``theta``) and, yawed by ``psi``, touches the ``y`` walls with two vertical corners; in the

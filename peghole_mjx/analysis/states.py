@@ -26,8 +26,10 @@ import itertools
 from dataclasses import dataclass
 
 import numpy as np
+from scipy.optimize import brentq
 
 from peghole_mjx.analysis import oracle
+from peghole_mjx.analysis.dual import full_contacts
 from peghole_mjx.geometry.specs import DualSpec, RectSpec
 
 # ----------------------------------------------------------------------------------------
@@ -201,8 +203,6 @@ def _bisect_isolated(body, ci, cj, h_a, h_b, extra, th_seed, tol):
 
 
 def _dual_contacts(spec: DualSpec) -> tuple[oracle.Contact, ...]:
-    from peghole_mjx.analysis.dual import full_contacts
-
     return full_contacts(spec)
 
 
@@ -280,8 +280,6 @@ def _rect_pose_features(spec: RectSpec, signs, touch, h: float, alpha: float = 2
         )
         P, tags = _inserted_vertices(spec, _rot(th, ph, ps), h)
         return P, tags
-
-    from scipy.optimize import brentq
 
     k_x = k_y = 1.0
     for axis, idx, width in ((0, 0, v), (1, 1, w)):

@@ -11,14 +11,15 @@ from collections.abc import Callable
 from ml_collections import config_dict
 
 from peghole_mjx.envs import dual_extract, rect_extract
-from peghole_mjx.envs.base import PegHoleEnv, State
+from peghole_mjx.envs.base import State
+from peghole_mjx.envs.extraction import PegHoleEnv
 from peghole_mjx.errors import UserInputError
 
 _envs: dict[str, type[PegHoleEnv]] = {
     "RectExtract": rect_extract.RectExtract,
     "DualExtract": dual_extract.DualExtract,
     # the hard variants: the same tasks where the scripted Ch 2-3 method fails in part of the
-    # episodes (docs/training.md, "Hard variants")
+    # episodes (docs/index.md, "Hard variants")
     "RectExtractHard": rect_extract.RectExtract,
     "DualExtractHard": dual_extract.DualExtract,
 }

@@ -207,13 +207,3 @@ class PegHoleBase:
         rel = info["hole_mat"].T @ (r.flange_pos - info["hole_pos"])
         R = info["hole_mat"].T @ r.flange_mat @ jnp.asarray(TOOL_DOWN_MAT).T
         return rel, rotvec_from_mat(R)
-
-
-def __getattr__(name: str):
-    # the task class lives in envs/extraction.py; this import path is kept for code written
-    # against the single-module layout (``from peghole_mjx.envs.base import PegHoleEnv``)
-    if name == "PegHoleEnv":
-        from peghole_mjx.envs.extraction import PegHoleEnv
-
-        return PegHoleEnv
-    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")

@@ -6,7 +6,13 @@ import argparse
 import json
 import sys
 
+from peghole_mjx import envs, policies
+from peghole_mjx import progress as prog
+from peghole_mjx.envs import rollout as rollout_mod
+from peghole_mjx.envs.engines import CLI_ENGINES, engine_overrides
 from peghole_mjx.errors import UserInputError
+from peghole_mjx.geometry.specs import get_preset
+from peghole_mjx.training.evaluate import config_differences
 from peghole_mjx.validation import arg, dumps
 
 
@@ -25,10 +31,7 @@ def _override(text: str) -> tuple[str, object]:
 
 
 def add_parser(sub: argparse._SubParsersAction) -> None:
-    from peghole_mjx.envs import ALL_ENVS
-    from peghole_mjx.envs.engines import CLI_ENGINES
-
-    p = sub.add_parser("envs", help=f"batched extraction environments ({', '.join(ALL_ENVS)})")
+    p = sub.add_parser("envs", help=f"batched extraction environments ({', '.join(envs.ALL_ENVS)})")
     esub = p.add_subparsers(dest="envs_cmd", metavar="SUBCOMMAND", required=True)
     r = esub.add_parser(
         "rollout",
@@ -38,11 +41,11 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
         "and peak |F_z|, mean |F_xy|, plus compile time and steps/s. The scripted policy is "
         "the thesis's Ch 2-3 method (fixed compliance at the peg tip, straight pull).",
     )
-    r.add_argument("--env", required=True, choices=ALL_ENVS)
+    r.add_argument("--env", required=True, choices=envs.ALL_ENVS)
     r.add_argument(
         "--policy",
         default="scripted",
-        help="scripted | random | a policy: pretrained name (rect, dual, rect_hard, dual_hard), "
+        help=f"scripted | random | a policy: pretrained name ({', '.join(policies.PRETRAINED)}), "
         "policy or run directory",
     )
     r.add_argument(
@@ -71,20 +74,15 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
 
 def make_policy(env, name: str):
     """``scripted`` or ``random`` -> ``policy(obs, rng) -> action``."""
-    from peghole_mjx.envs.rollout import random_policy, scripted_policy
-
-    return scripted_policy(env) if name == "scripted" else random_policy(env)
+    if name == "scripted":
+        return rollout_mod.scripted_policy(env)
+    return rollout_mod.random_policy(env)
 
 
 def cmd_rollout(args: argparse.Namespace) -> int:
-    from peghole_mjx.envs import get_default_config, load
-    from peghole_mjx.envs.engines import engine_overrides
-    from peghole_mjx.envs.rollout import rollout
-    from peghole_mjx.geometry.specs import get_preset
-
     overrides = dict(args.overrides)
     if args.preset:
-        kind = get_preset(get_default_config(args.env).preset).kind
+        kind = get_preset(envs.get_default_config(args.env).preset).kind
         if get_preset(args.preset).kind != kind:
             raise UserInputError(f"preset {args.preset} does not fit {args.env} (a {kind} env)")
         overrides["preset"] = args.preset
@@ -92,21 +90,18 @@ def cmd_rollout(args: argparse.Namespace) -> int:
     if args.engine is not None or args.policy in ("scripted", "random"):
         overrides = {**engine_overrides(args.engine or "auto"), **overrides}
     if args.policy not in ("scripted", "random"):
-        from peghole_mjx.policies import load_policy
-
-        bundle = load_policy(args.policy)
+        bundle = policies.load_policy(args.policy)
         if bundle.env_name != args.env:
             raise UserInputError(f"policy {args.policy} was trained on {bundle.env_name}")
     try:
-        if bundle is not None:  # the env exactly as trained (plus --set)
-            env = bundle.make_env(overrides)
-        else:
-            env = load(args.env, config_overrides=overrides or None)
+        with prog.phase(f"building the {args.env} env", enabled=not args.json):
+            if bundle is not None:  # the env exactly as trained (plus --set)
+                env = bundle.make_env(overrides)
+            else:
+                env = envs.load(args.env, config_overrides=overrides or None)
     except (KeyError, AttributeError) as exc:
         raise UserInputError(f"bad config override: {exc}") from None
     if bundle is not None:
-        from peghole_mjx.training.evaluate import config_differences
-
         for key, (trained, now) in config_differences(bundle, env.config).items():
             # an exploration of other settings: said, never written into the policy folder
             print(
@@ -116,7 +111,15 @@ def cmd_rollout(args: argparse.Namespace) -> int:
         policy, params = bundle.policy_fn(), bundle.params
     else:
         policy = make_policy(env, args.policy)
-    res = rollout(env, policy, args.episodes, seed=args.seed, progress=not args.json, params=params)
+    res = rollout_mod.rollout(
+        env,
+        policy,
+        args.episodes,
+        seed=args.seed,
+        progress=not args.json,
+        params=params,
+        label=f"{args.policy} rollout",
+    )
     summary = res.summary().as_dict()
     timing = {
         "compile_s": round(res.compile_s, 2),

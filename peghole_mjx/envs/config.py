@@ -25,8 +25,10 @@ from ml_collections import config_dict
 from peghole_mjx.control import GAINS, LIMITS
 from peghole_mjx.envs.reward import REWARD_WEIGHTS
 from peghole_mjx.errors import InfeasibleGeometryError, UserInputError
-from peghole_mjx.geometry.mjcf import SimOptions
+from peghole_mjx.geometry.mjcf import CONTACT_CAPS, SimOptions, contact_cap_for
+from peghole_mjx.geometry.parts import resolve_representation
 from peghole_mjx.geometry.specs import MM, PegHoleSpec, get_preset, with_changes
+from peghole_mjx.validation import CONTACT_CAP_FACTOR, RANGES, _num, check_finite_tree
 
 
 def base_config(preset: str) -> config_dict.ConfigDict:
@@ -52,12 +54,13 @@ def base_config(preset: str) -> config_dict.ConfigDict:
         ctrl_dt=0.02,  # s, one env step (50 Hz)
         sim_dt=SimOptions().timestep,  # s, physics step (from the one place it is set)
         episode_length=600,  # env steps (12 s at 50 Hz)
-        # contact settings (docs/contact.md; peghole experiment contact-check, variant "envs"):
+        # contact settings (docs/research/contact.md; peghole experiment contact-check, variant
+        # "envs"):
         # a 10 ms contact time constant (0: 2 x sim_dt, MuJoCo's stiffest) and frictional rows
         # relaxed over 1 s (0: as stiff as the normal row)
         contact=config_dict.create(timeconst_s=0.01, friction_timeconst_s=1.0),
         # warp: contact buffer per world (x num worlds) and constraint rows per world; the most
-        # active contacts measured (benchmarks/results/contact_caps.json, 2026-11-30) are rect
+        # active contacts measured (benchmarks/results/perf/contact_caps.json, 2026-11-30) are rect
         # 20 (edges and box), dual capsule 26, dual mesh 37; 3 rows per elliptic condim-3
         # contact + joint limits
         naconmax=64,
@@ -67,7 +70,7 @@ def base_config(preset: str) -> config_dict.ConfigDict:
             max_speed_m_s=LIMITS.max_speed_m_s,  # |dz| per step = this x ctrl_dt
             max_force_step_N=2.0,  # |dF| per step
             # bound of the accumulated lateral feed-forward |F_x|, |F_y| (the force limit of
-            # E11 by default; DualExtract's training profiles lower it: docs/training.md,
+            # E11 by default; DualExtract's training profiles lower it: docs/guide/training.md,
             # "Lateral feed-forward bound")
             max_ff_xy_N=LIMITS.max_force_N[0],
         ),
@@ -81,7 +84,7 @@ def base_config(preset: str) -> config_dict.ConfigDict:
         ),
         compliance_strategy=False,  # when on, the action also sets k_xy (and K_theta, L_C)
         # with compliance_strategy: the action also sets the rotational stiffness K_theta (the
-        # stiffness that the angular error loads; see docs/training.md, "Compliance strategy")
+        # stiffness that the angular error loads; see docs/guide/training.md, "Compliance strategy")
         compliance_rotation=True,
         learn_compliance_centre=False,  # with compliance_strategy: the action also sets L_C
         stiffness=config_dict.create(
@@ -106,7 +109,8 @@ def base_config(preset: str) -> config_dict.ConfigDict:
             stiffness_scale_N_m=1000.0,  # ||k_xy|| is measured in N/mm
             # not in eq (4.4): the stiffness term extended to K_theta, for the K_theta compliance
             # strategy (our extension). 0 = the thesis's reward; DualExtract's training profiles
-            # set it (train/configs/DualExtract.json; docs/training.md, "Rotational stiffness term")
+            # set it (train/configs/DualExtract.json; docs/guide/training.md, "Rotational stiffness
+            # term")
             w_stf_rot=0.0,
             rot_stiffness_scale_Nm_rad=GAINS.rotational_stiffness_Nm_rad,
             # not in eq (4.4) either: a penalty on the extraction force |f_z| itself, the
@@ -125,7 +129,7 @@ def base_config(preset: str) -> config_dict.ConfigDict:
             prev_action=False,
             # the accumulated feed-forward force and the commanded tip minus the tip (6
             # entries): the integrators of actions 0-5, which eq (4.2)'s state leaves hidden
-            # (docs/training.md, "Self-inflicted failures")
+            # (docs/research/index.md, "Self-inflicted failures")
             commands=False,
             force_scale_N=LIMITS.max_force_N[0],
             torque_scale_Nm=LIMITS.max_torque_Nm[0],
@@ -353,8 +357,6 @@ TUPLES = {
 
 def _range_problem(rng, value) -> str | None:
     """What is wrong with ``value`` for ``rng``, naming the bound it crosses first."""
-    from peghole_mjx.validation import _num
-
     problem = rng.problem(value)
     if problem is None or isinstance(value, bool) or not isinstance(value, int | float):
         return problem
@@ -374,10 +376,6 @@ def check_config_values(config: config_dict.ConfigDict) -> None:
     """Every entry of the env config has its type, and every number is finite and in its
     range (:data:`peghole_mjx.validation.RANGES`, ``env.<key>``): checked before any model is
     built or compiled, naming the entry."""
-    from peghole_mjx.geometry.mjcf import CONTACT_CAPS, contact_cap_for
-    from peghole_mjx.geometry.parts import resolve_representation
-    from peghole_mjx.validation import CONTACT_CAP_FACTOR, RANGES, check_finite_tree
-
     check_finite_tree(config.to_dict(), "env config")
 
     def need(cond: bool, what: str) -> None:

@@ -11,7 +11,8 @@ from __future__ import annotations
 
 from ml_collections import config_dict
 
-from peghole_mjx.envs.base import PegHoleEnv, base_config
+from peghole_mjx.envs.config import base_config
+from peghole_mjx.envs.extraction import PegHoleEnv
 from peghole_mjx.geometry.specs import get_preset
 
 
@@ -33,7 +34,7 @@ def hard_config() -> config_dict.ConfigDict:
     """DualExtractHard: dual-3 (r = 6.05 mm pegs in R = 6.1 mm holes) with mu 0.266 (erratum E5:
     the friction of the rect chapter's printed peg) and the commanded tilt error up to 1.75 deg
     about each axis, where the scripted Ch 2-3 method wedges in a fraction of the episodes
-    (docs/training.md, "Hard variants"; measured with ``benchmarks/hard_variants.py``)."""
+    (docs/index.md, "Hard variants"; measured with ``benchmarks/evals/hard_variants.py``)."""
     config = default_config("dual-3")
     r = config.randomization
     # the env scales the preset's mu per episode by friction_scale: rescale the range to mu 0.266

@@ -37,6 +37,11 @@ import mujoco
 import numpy as np
 from flax import struct
 
+try:  # MuJoCo >= 4.0 (pyproject allows 3.3): without it the engine refuses to start, in one line
+    from mujoco import batch as mj_batch
+except ImportError:
+    mj_batch = None
+
 from peghole_mjx.control import ImpedanceController, ImpedanceParams
 from peghole_mjx.control.reference import impedance_torque
 from peghole_mjx.envs.engines import FTReading, Readout, SceneIds, Sense
@@ -72,9 +77,7 @@ class _Pool:
     """One ``mujoco.batch.Batch`` of ``nsim`` worlds with the fields the engine binds."""
 
     def __init__(self, model: mujoco.MjModel, nsim: int, nthread: int):
-        from mujoco.batch import Batch
-
-        self.batch = b = Batch(model, nsim, nthread=nthread)
+        self.batch = b = mj_batch.Batch(model, nsim, nthread=nthread)
         self.state = b.state
         self.qpos, self.qvel, self.ctrl = b.bind("qpos"), b.bind("qvel"), b.bind("ctrl")
         self.xpos, self.xmat = b.bind("xpos"), b.bind("xmat")
@@ -98,13 +101,11 @@ class MujocoEngine:
         n_substeps: int,
         threads: int = 0,
     ):
-        try:
-            import mujoco.batch
-        except ImportError:
+        if mj_batch is None:
             raise UserInputError(
                 "engine 'mujoco' needs MuJoCo >= 4.0 (mujoco.batch); installed "
                 f"{mujoco.__version__}"
-            ) from None
+            )
         if not isinstance(threads, int) or isinstance(threads, bool) or threads < 0:
             raise UserInputError(
                 f"mujoco_threads must be an integer >= 0 (0: all CPUs), got {threads!r}"
@@ -134,7 +135,7 @@ class MujocoEngine:
         self._pools: dict[int, _Pool] = {}
         self._lock = threading.Lock()
         #: host seconds spent in the substep callbacks and, within them, in ``Batch.step``
-        #: (the physics alone); read by benchmarks/throughput.py
+        #: (the physics alone); read by benchmarks/perf/throughput.py
         self.timing = {"callback_s": 0.0, "batch_step_s": 0.0, "calls": 0}
         fd = np.dtype(np.float32)
         n_sub = self.n_substeps
@@ -229,12 +230,10 @@ class MujocoEngine:
 
     def _run(self, p: _Pool, call) -> np.ndarray:
         """Run ``call()`` on the pool; the worlds MuJoCo raised in are returned not ok."""
-        from mujoco.batch import SimulationError
-
         ok = np.ones(p.batch.nsim, bool)
         try:
             call()
-        except SimulationError as exc:
+        except mj_batch.SimulationError as exc:
             ok[np.asarray(exc.ids)] = False
         return ok
 

@@ -48,7 +48,7 @@ CLI_ENGINES = ("auto", "mjx", "mjx-warp", "mujoco")
 
 def default_engine() -> str:
     """The faster engine on this machine: ``mujoco`` (MuJoCo C) where JAX has no GPU, else
-    ``mjx`` (measured: benchmarks/results/throughput_engines_cpu-2core.json)."""
+    ``mjx`` (measured: benchmarks/results/perf/throughput_engines_cpu-2core.json)."""
     return "mujoco" if jax.default_backend() == "cpu" else "mjx"
 
 

@@ -4,7 +4,8 @@ from __future__ import annotations
 
 from ml_collections import config_dict
 
-from peghole_mjx.envs.base import PegHoleEnv, base_config
+from peghole_mjx.envs.config import base_config
+from peghole_mjx.envs.extraction import PegHoleEnv
 
 
 def default_config(preset: str = "rect-2") -> config_dict.ConfigDict:
@@ -21,8 +22,8 @@ HARD_ANGULAR_ERROR_DEG = 4.0
 def hard_config() -> config_dict.ConfigDict:
     """RectExtractHard: rect-3 (60.05 x 40.05 mm peg, 0.05 mm clearance) with the commanded
     tilt error up to 4 deg about each axis, where the scripted Ch 2-3 method wedges in a
-    fraction of the episodes (docs/training.md, "Hard variants"; measured with
-    ``benchmarks/hard_variants.py``)."""
+    fraction of the episodes (docs/index.md, "Hard variants"; measured with
+    ``benchmarks/evals/hard_variants.py``)."""
     config = default_config("rect-3")
     config.randomization.angular_error_deg = HARD_ANGULAR_ERROR_DEG
     return config

@@ -15,6 +15,7 @@ from __future__ import annotations
 import functools
 import sys
 import time
+import weakref
 from collections.abc import Callable
 from dataclasses import asdict, dataclass, make_dataclass
 from pathlib import Path
@@ -23,8 +24,11 @@ from typing import Any
 import jax
 import jax.numpy as jnp
 import numpy as np
+from tqdm import tqdm
 
-from peghole_mjx import fileio, memory
+from peghole_mjx import envs, fileio, memory
+from peghole_mjx import progress as prog
+from peghole_mjx.envs.config import leaves
 from peghole_mjx.envs.extraction import PegHoleEnv
 from peghole_mjx.envs.metrics import (
     EPISODE_RECORD,
@@ -33,6 +37,7 @@ from peghole_mjx.envs.metrics import (
     summarize,
     zero_returns,
 )
+from peghole_mjx.errors import UserInputError
 
 Policy = Callable[[jax.Array, jax.Array], jax.Array]
 
@@ -162,6 +167,7 @@ def rollout(
     batch: int | None = None,
     parts_dir: str | Path | None = None,
     refuse_all_nan: bool = True,
+    label: str = "rollout",
 ) -> RolloutResult:
     """Run ``episodes`` episodes until each is done (success or failure).
 
@@ -179,6 +185,10 @@ def rollout(
     saved, so an interrupted long evaluation continues where it stopped or is extended (the
     caller keys the folder to the policy, env, seed and batch; slice files are named by their
     first episode and size).
+
+    ``label`` names the progress bar (``policy rollout``, ``baseline rollout``); with
+    ``progress`` the first chunk of a runner not compiled yet in this process is shown as
+    ``compiling the env step and policy of the <label>`` (:mod:`peghole_mjx.progress`).
     """
     if not jax.config.jax_threefry_partitionable:
         raise RuntimeError("rollout needs jax_threefry_partitionable=True (prefix-stable keys)")
@@ -210,7 +220,7 @@ def rollout(
             params,
             gamma,
             progress=progress,
-            desc=f"rollout {start + n}/{episodes}" if n < episodes else "rollout",
+            desc=f"{label} {start + n}/{episodes}" if n < episodes else label,
         )
         rec = {k: v[:n] for k, v in rec.items()}
         records.append(rec)
@@ -237,8 +247,6 @@ def check_not_all_nan(result: RolloutResult, env: PegHoleEnv, params: Any = None
     The cause named: policy ``params`` that are not finite, else the entries of the env config
     that differ from the env's defaults, else the policy's actions (a NaN action ends its
     episode as a NaN world)."""
-    from peghole_mjx.errors import UserInputError
-
     nan = np.asarray(result.per_episode["nan"]) > 0
     if nan.size == 0 or not nan.all():
         return
@@ -268,9 +276,6 @@ def check_not_all_nan(result: RolloutResult, env: PegHoleEnv, params: Any = None
 def _config_changes(env: PegHoleEnv) -> list[tuple[str, Any]]:
     """``(flat key, value)`` of the env config's entries that differ from its env's defaults
     (the engine choice left out: it is set per machine)."""
-    from peghole_mjx import envs
-    from peghole_mjx.envs.config import leaves
-
     if env.env_name not in envs.ALL_ENVS:
         return []
     default = dict(leaves(envs.get_default_config(env.env_name)))
@@ -281,17 +286,24 @@ def _config_changes(env: PegHoleEnv) -> list[tuple[str, Any]]:
     ]
 
 
+#: the runners (:func:`make_runner`'s jitted run) that have compiled in this process: their
+#: first chunk is not labelled as a compile again
+_COMPILED: weakref.WeakSet = weakref.WeakSet()
+
+
 def _rollout_slice(env, policy, reset_keys, rng, chunk, params, gamma, progress, desc):
     """One batch of worlds until all are done: (per-episode record, compile s, run s, steps)."""
     episodes = reset_keys.shape[0]
     reset, run = make_runner(env, policy, chunk, params is not None, gamma)
     t0 = time.perf_counter()
-    states, record, finished = reset(reset_keys)
-    states, record, finished, rng = run(states, record, finished, rng, params)
-    jax.block_until_ready(finished)
+    fresh = run not in _COMPILED
+    with prog.compiling(f"the env step and policy of the {desc}", enabled=progress and fresh):
+        states, record, finished = reset(reset_keys)
+        states, record, finished, rng = run(states, record, finished, rng, params)
+        jax.block_until_ready(finished)
+    _COMPILED.add(run)
     compile_s = time.perf_counter() - t0  # first chunk: compile + chunk steps
     n_chunks = -(-env.config.episode_length // chunk)
-    from tqdm import tqdm
 
     bar = tqdm(
         total=n_chunks * chunk,
@@ -300,6 +312,7 @@ def _rollout_slice(env, policy, reset_keys, rng, chunk, params, gamma, progress,
         desc=desc,
         file=sys.stderr,
         disable=not progress,
+        dynamic_ncols=True,
     )
     t1 = time.perf_counter()
     steps = chunk

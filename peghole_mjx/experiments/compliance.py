@@ -34,8 +34,11 @@ import mujoco
 import numpy as np
 from mujoco import mjx
 from scipy.signal import savgol_filter
-from tqdm import tqdm
 
+from peghole_mjx import progress as prog
+from peghole_mjx.analysis import dual as an_dual
+from peghole_mjx.analysis import oracle
+from peghole_mjx.analysis import rect as an_rect
 from peghole_mjx.control import GAINS, ImpedanceController, Target, make_params, rot_y
 from peghole_mjx.errors import UserInputError
 from peghole_mjx.geometry.mjcf import SimOptions, compile_scene
@@ -49,21 +52,37 @@ THESIS = {
     "source": "thesis Sec 3.5 (rectangular peg, real KUKA LBR iiwa); dual: Fig 2.20 ordering only",
 }
 
-LC_MM = {"rect": (0.0, 75.0, 150.0), "dual": (0.0, 25.0, 50.0)}
+GEOMETRIES = ("rect", "dual")
 
-#: The experiment's physics step and contact time constant, s, per geometry (evidence:
-#: ``peghole experiment contact-check``, benchmarks/results/contact_check.json and the table in
-#: docs/contact.md). In float32 a 1 um penetration is within a few ulps of the world
-#: coordinates (~0.6 m), so MuJoCo's stiffest contact (time constant 2 steps) turns rounding
-#: noise into force noise; a 10 ms time constant keeps the tilted rect pegs in two-point contact
-#: with a few um of penetration. The dual presets' clearances are 2-4x larger.
-TIMESTEP_S = {"rect": 0.001, "dual": 0.002}
-CONTACT_TIMECONST_S = {"rect": 0.01, "dual": 0.01}
-#: The experiment's collision representation per geometry. Dual: the exact 16-gon meshes, not
-#: the envs' capsules: in a jammed two-point configuration MJX-JAX's capsule-box contact keeps
-#: the mouth normal horizontal and reads F_z 33-97 % above the quasi-static oracle, the mesh
-#: scene within 3 % (benchmarks/results/capsule_fidelity.json).
-REPRESENTATION = {"rect": "edges", "dual": "mesh"}
+
+@dataclass(frozen=True)
+class GeometrySetup:
+    """What the experiment sets per geometry (an :class:`ExperimentConfig` field per geometry,
+    ``ExperimentConfig.rect`` and ``.dual``, with its defaults).
+
+    * ``lc_mm``: the compliance centre's positions, mm above the peg tip: tip, centre, top.
+    * ``timestep_s``, ``contact_timeconst_s``: the physics step and the contact time constant,
+      s (evidence: ``peghole experiment contact-check``, benchmarks/results/evals/contact_check.json
+      and the table in docs/research/contact.md). In float32 a 1 um penetration is within a few ulps
+      of the world coordinates (~0.6 m), so MuJoCo's stiffest contact (time constant 2 steps)
+      turns rounding noise into force noise; a 10 ms time constant keeps the tilted rect pegs
+      in two-point contact with a few um of penetration. The dual presets' clearances are 2-4x
+      larger.
+    * ``representation``: the collision representation. Dual: the exact 16-gon meshes, not
+      the envs' capsules: in a jammed two-point configuration MJX-JAX's capsule-box contact
+      keeps the mouth normal horizontal and reads F_z 33-97 % above the quasi-static oracle,
+      the mesh scene within 3 % (benchmarks/results/studies/capsule_fidelity.json).
+
+    Decided 2026-12-02: these were module tables (``LC_MM``, ``TIMESTEP_S``,
+    ``CONTACT_TIMECONST_S``, ``REPRESENTATION``) beside the config; as config fields a run
+    states and records them with its other settings (:func:`config_dict`), values unchanged.
+    """
+
+    lc_mm: tuple[float, ...]
+    timestep_s: float
+    contact_timeconst_s: float
+    representation: str
+
 
 #: a 20 ms sample is a two-point window when both wall sides carry at least this mean normal
 #: force (N): well below the lateral spring's 0.3-0.6 N and above the solver's noise floor
@@ -121,13 +140,15 @@ class ExperimentConfig:
     #: physics steps per jitted call (a multiple of the steps per sample)
     chunk_steps: int = 400
     batch: str = "vmap"
-    #: simulator options of the scene (None: ``SimOptions()`` at :data:`TIMESTEP_S`)
+    #: simulator options of the scene (None: ``SimOptions()`` at the geometry's
+    #: ``timestep_s`` and ``contact_timeconst_s``, :meth:`sim_options`)
     sim: SimOptions | None = None
-    #: collision representation (None: :data:`REPRESENTATION` of the geometry)
+    #: collision representation (None: the geometry's ``representation``, :meth:`setup`)
     representation: str | None = None
     #: the law cancels the arm model's joint damping (``ImpedanceController``'s
     #: ``compensate_passive``): uncancelled, it tilts a 3 N m/rad spring by more than beta0
-    #: (benchmarks/results/low_stiffness_check.json; docs/compliance.md, "Soft rotational springs")
+    #: (benchmarks/results/studies/low_stiffness_check.json; docs/research/pull_speed.md, "Soft
+    #: rotational springs")
     compensate_joint_damping: bool = True
     #: trace the experiment with MJX's elliptic-cone Newton Hessian fixed
     #: (:mod:`peghole_mjx.mjx_fixes`): the shipped one turned 13 of 48 worlds to NaN at
@@ -138,16 +159,37 @@ class ExperimentConfig:
     off_axis_rotational_stiffness_Nm_rad: float | None = None
     #: the law's damping ratio zeta (None: ``GAINS.damping_ratio``)
     damping_ratio: float | None = None
+    #: the rect and dual presets' L_C positions, step, contact time constant and collision
+    #: representation (:class:`GeometrySetup`)
+    rect: GeometrySetup = GeometrySetup(
+        lc_mm=(0.0, 75.0, 150.0), timestep_s=0.001, contact_timeconst_s=0.01, representation="edges"
+    )
+    dual: GeometrySetup = GeometrySetup(
+        lc_mm=(0.0, 25.0, 50.0), timestep_s=0.002, contact_timeconst_s=0.01, representation="mesh"
+    )
+
+    def setup(self, kind: str | None = None) -> GeometrySetup:
+        """The :class:`GeometrySetup` of geometry ``kind`` (None: this config's ``geometry``)."""
+        kind = kind or self.geometry
+        if kind not in GEOMETRIES:
+            raise UserInputError(f"geometry must be rect or dual, not {kind!r}")
+        return getattr(self, kind)
+
+    def representation_of(self, kind: str) -> str:
+        """The collision representation of a ``kind`` preset: ``representation``, else the
+        geometry's."""
+        return self.representation or self.setup(kind).representation
 
     def sim_options(self) -> SimOptions:
         """The simulator options in effect: ``sim``, else the project's default options at the
-        geometry's experiment step and contact time constant (:data:`TIMESTEP_S`)."""
+        geometry's experiment step and contact time constant (:meth:`setup`)."""
         if self.sim is not None:
             return self.sim
+        setup = self.setup()
         return dataclasses.replace(
             SimOptions(),
-            timestep=TIMESTEP_S[self.geometry],
-            contact_timeconst=CONTACT_TIMECONST_S[self.geometry],
+            timestep=setup.timestep_s,
+            contact_timeconst=setup.contact_timeconst_s,
         )
 
     @classmethod
@@ -170,7 +212,7 @@ def world_table(cfg: ExperimentConfig, preset: str) -> dict[str, np.ndarray]:
     rng = np.random.default_rng([cfg.seed, sorted(PRESETS).index(preset)])
     d0 = rng.uniform(*cfg.delta0_mm, cfg.repeats) * MM
     b0 = np.radians(rng.uniform(*cfg.beta0_deg, cfg.repeats))
-    lc = np.array(LC_MM[PRESETS[preset].kind]) * MM
+    lc = np.array(cfg.setup(PRESETS[preset].kind).lc_mm) * MM
     n = len(lc) * cfg.repeats
     return {
         "L_C": np.repeat(lc, cfg.repeats),
@@ -193,7 +235,7 @@ class Extraction:
         if mu is not None:
             self.spec = dataclasses.replace(self.spec, friction=float(mu))
         self.mu = float(self.spec.friction)
-        rep = cfg.representation or REPRESENTATION[self.spec.kind]
+        rep = cfg.representation_of(self.spec.kind)
         m = compile_scene(self.spec, sim=cfg.sim_options(), representation=rep)
         self.m = m
         self.ctl = ImpedanceController(m, compensate_passive=cfg.compensate_joint_damping)
@@ -236,9 +278,10 @@ class Extraction:
         self.n_chunks = math.ceil(n / cfg.chunk_steps)
         self.n_steps = self.n_chunks * cfg.chunk_steps
         self._chunk = jax.jit(self._chunk_fn)
+        self._compiled = False  # the first chunk of the first run compiles _chunk
 
     # ---- one world -------------------------------------------------------------------
-    def _init_world(self, L_C, delta0, beta0, theta0, k_lat, k_rot):
+    def init_world(self, L_C, delta0, beta0, theta0, k_lat, k_rot):
         kz = self.cfg.axial_stiffness_N_m
         off = self.cfg.off_axis_rotational_stiffness_Nm_rad
         k_off = k_rot if off is None else jnp.full_like(k_rot, off)
@@ -272,7 +315,7 @@ class Extraction:
         pen = jnp.max(jnp.where((addr >= 0) & jnp.isfinite(con.dist), -con.dist, 0.0), initial=0.0)
         return plus, minus, pen
 
-    def _step(self, carry, t):
+    def step(self, carry, t):
         dx, target, params, err, stats = carry
         cfg = self.cfg
         moving = t >= self.n_settle
@@ -335,7 +378,7 @@ class Extraction:
 
     def _world_chunk(self, carry, t0):
         ts = t0 + jnp.arange(self.cfg.chunk_steps)
-        carry, rec = jax.lax.scan(self._step, carry, ts)
+        carry, rec = jax.lax.scan(self.step, carry, ts)
         k = self.record_every
         rec = rec.reshape(-1, k, rec.shape[-1])
         out = [None] * len(REC)
@@ -369,28 +412,40 @@ class Extraction:
         missing = [k for k in WORLD_KEYS if k not in tab]
         if missing:
             raise ValueError(f"world table lacks {missing}")
-        carries = jax.vmap(self._init_world)(*(jnp.asarray(tab[k]) for k in WORLD_KEYS))
+        carries = jax.vmap(self.init_world)(*(jnp.asarray(tab[k]) for k in WORLD_KEYS))
         nw = len(tab["L_C"])
         if self.cfg.batch == "vmap":
             groups = [carries]
         else:
             groups = [jax.tree.map(lambda a, i=i: a[i], carries) for i in range(nw)]
-        bar = tqdm(
-            total=self.n_chunks * len(groups), desc=self.preset, disable=not progress, leave=False
-        )
+        bar = None  # started after the first chunk, so that its rate leaves the compile out
         recs, stats = [], []
         for g in groups:
             grec = []
             for c in range(self.n_chunks):
-                with cone_hessian_fix(self.cfg.fix_cone_hessian):
-                    g, rec = self._chunk(g, jnp.asarray(c * self.cfg.chunk_steps))
-                grec.append(np.asarray(rec))
-                bar.update()
+                what = f"the experiment's MJX step ({self.preset}, {nw} worlds)"
+                with prog.compiling(what, enabled=progress and not self._compiled):
+                    with cone_hessian_fix(self.cfg.fix_cone_hessian):
+                        g, rec = self._chunk(g, jnp.asarray(c * self.cfg.chunk_steps))
+                    grec.append(np.asarray(rec))
+                self._compiled = True
+                if bar is None:
+                    bar = prog.bar(
+                        self.n_chunks * len(groups),
+                        f"{self.preset} pull",
+                        unit="chunk",
+                        enabled=progress,
+                        initial=1,
+                        leave=False,
+                    )
+                else:
+                    bar.update()
             recs.append(
                 np.concatenate(grec, axis=-2).reshape(-1, sum(r.shape[-2] for r in grec), len(REC))
             )
             stats.append(np.asarray(g[4]).reshape(-1, 6))
-        bar.close()
+        if bar is not None:
+            bar.close()
         rec = np.concatenate(recs, axis=0).astype(np.float64)  # (worlds, samples, REC)
         stats = np.concatenate(stats, axis=0)
         out = {k: np.asarray(v) for k, v in tab.items()}
@@ -547,9 +602,6 @@ def analytic_two_point_hook(
     depth below the mouth, or None), ``worlds_with_two_point``, ``per_category`` (each
     category's union) and ``per_world`` ([lo, hi] or None per world).
     """
-    from peghole_mjx.analysis import dual as an_dual
-    from peghole_mjx.analysis import rect as an_rect
-
     spec = PRESETS[preset]
     d0 = np.atleast_1d(
         np.asarray(float(np.mean(cfg.delta0_mm)) if delta0_mm is None else delta0_mm, float)
@@ -647,13 +699,26 @@ def check_not_all_nan(nan: np.ndarray, what: str, cause: str) -> None:
 
 
 def config_dict(cfg: ExperimentConfig) -> dict:
-    """The config as JSON-ready data; ``sim``: the effective simulator options."""
-    out = {k: (list(v) if isinstance(v, tuple) else v) for k, v in dataclasses.asdict(cfg).items()}
-    sim = cfg.sim_options()
-    out["sim"] = {
-        k: (list(v) if isinstance(v, tuple) else v) for k, v in dataclasses.asdict(sim).items()
+    """The config as JSON-ready data; ``sim``: the effective simulator options. A geometry's
+    :class:`GeometrySetup` is written only when it differs from the default, so that a
+    config's record (and a sweep's resume key, ``sweep.SweepConfig.settings``) is what it was
+    before the setups became fields."""
+    default = ExperimentConfig()
+    out = {
+        k: _json_ready(v)
+        for k, v in dataclasses.asdict(cfg).items()
+        if k not in GEOMETRIES or getattr(cfg, k) != getattr(default, k)
     }
+    sim = cfg.sim_options()
+    out["sim"] = {k: _json_ready(v) for k, v in dataclasses.asdict(sim).items()}
     return out
+
+
+def _json_ready(v):
+    """Tuples as lists, in nested dicts too (a :class:`GeometrySetup` as ``asdict`` gives it)."""
+    if isinstance(v, dict):
+        return {k: _json_ready(x) for k, x in v.items()}
+    return list(v) if isinstance(v, tuple) else v
 
 
 def quasi_static(
@@ -670,10 +735,6 @@ def quasi_static(
     isolated three-point depths), ``f_plus`` / ``f_minus`` (normal force on the +x / -x wall
     side, N) and ``two_point`` (contacts on both sides).
     """
-    from peghole_mjx.analysis import dual as an_dual
-    from peghole_mjx.analysis import oracle
-    from peghole_mjx.analysis import rect as an_rect
-
     spec = PRESETS[preset]
     col = {k: np.asarray(table[k], float)[:, None] for k in WORLD_KEYS}
     h = np.linspace(min(h0_mm, spec.length_mm), 0.2, n_depths)[None, :]

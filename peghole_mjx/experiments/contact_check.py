@@ -17,7 +17,8 @@ Per world it reports, inside the 20 ms samples where both wall sides are loaded 
   time-averaged side forces and the quasi-static oracle's at the same tip depth.
 
 A variant is a step size and a set of contact settings (:data:`VARIANTS`); the table over the
-variants is the evidence for the experiment's and the environments' settings (docs/contact.md).
+variants is the evidence for the experiment's and the environments' settings
+(docs/research/contact.md).
 """
 
 from __future__ import annotations
@@ -27,6 +28,7 @@ import math
 import time
 from dataclasses import dataclass
 
+import jax
 import numpy as np
 
 from peghole_mjx.errors import UserInputError
@@ -88,10 +90,10 @@ VARIANTS: dict[str, Variant] = {
         Variant("edges-1ms", 0.001, 1.0, "edges"),
         Variant(
             "experiment",
-            cx.TIMESTEP_S["rect"],
+            cx.ExperimentConfig().rect.timestep_s,
             1.0,
-            "edges",
-            cx.CONTACT_TIMECONST_S["rect"],
+            cx.ExperimentConfig().rect.representation,
+            cx.ExperimentConfig().rect.contact_timeconst_s,
             note="the experiment's settings",
         ),
         Variant("envs", SimOptions().timestep, 1.0, "edges", 0.01, note="the envs' settings"),
@@ -218,7 +220,6 @@ def run_variant(
             "of this variant is a result; likely cause: its step size and contact settings, "
             "or float32 rounding (try --x64)"
         )
-    import jax
 
     return {
         "preset": preset,

@@ -12,6 +12,8 @@ from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
 
+import numpy as np
+
 from peghole_mjx import fileio
 from peghole_mjx.validation import dumps
 
@@ -46,8 +48,6 @@ def write_png(fig, path: str | Path, dpi: int) -> Path:
 
 def write_npz(path: str | Path, arrays: dict) -> Path:
     """Atomically save ``arrays`` with ``np.savez`` (file and folder flushed to disk)."""
-    import numpy as np
-
     with naming(path):
         return fileio.write_bytes_with(path, lambda f: np.savez(f, **arrays))
 

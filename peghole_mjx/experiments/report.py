@@ -6,6 +6,7 @@ import csv
 import datetime
 import io
 import platform
+import time
 from pathlib import Path
 
 import jax
@@ -16,6 +17,7 @@ import matplotlib.pyplot as plt
 import mujoco
 import numpy as np
 
+from peghole_mjx.experiments import compliance as cx
 from peghole_mjx.experiments import outputs
 from peghole_mjx.experiments.compliance import (
     ANALYTIC_MAPPING,
@@ -220,17 +222,13 @@ def run_experiment(cfg: ExperimentConfig, out: str | Path) -> tuple[dict, list[P
     ``out`` is checked (a writable folder with room for the outputs) before the first
     simulation step; a run whose every world went NaN is a
     :class:`~peghole_mjx.experiments.compliance.DivergedError`, not a result."""
-    import time
-
-    from peghole_mjx.experiments.compliance import Extraction, check_not_all_nan, nan_cause
-
     out = outputs.check_out(out, output_bytes(cfg))
     t0 = time.time()
-    results = {name: Extraction(name, cfg).run() for name in cfg.preset_names()}
-    check_not_all_nan(
+    results = {name: cx.Extraction(name, cfg).run() for name in cfg.preset_names()}
+    cx.check_not_all_nan(
         np.concatenate([np.asarray(r["nan"], bool) for r in results.values()]),
         f"the compliance experiment ({', '.join(results)})",
-        nan_cause(cfg, x64=bool(jax.config.jax_enable_x64)),
+        cx.nan_cause(cfg, x64=bool(jax.config.jax_enable_x64)),
     )
     summary = summarise(results, cfg, time.time() - t0)
     return summary, write_outputs(results, summary, out)

@@ -35,6 +35,8 @@ import zlib
 from dataclasses import dataclass
 from pathlib import Path
 
+import matplotlib
+import matplotlib.pyplot as plt
 import numpy as np
 from tqdm import tqdm
 
@@ -43,8 +45,8 @@ from peghole_mjx.errors import UserInputError
 from peghole_mjx.experiments import compliance as cx
 from peghole_mjx.experiments import outputs
 from peghole_mjx.geometry.specs import MM, PRESETS
+from peghole_mjx.lock import _alive, _proc_start
 from peghole_mjx.provenance import provenance
-from peghole_mjx.training.lock import _alive, _proc_start
 from peghole_mjx.validation import RANGES, _num
 
 #: thesis R1 (Sec 3.5): reductions of the mean peak extraction force, %
@@ -213,10 +215,14 @@ def repeat_factors(repeats: int, seed: int) -> tuple[np.ndarray, np.ndarray]:
     return rng.uniform(0.75, 1.25, repeats), rng.uniform(0.75, 1.25, repeats)
 
 
-def cell_table(cell: dict, repeats: int, seed: int) -> dict[str, np.ndarray]:
-    """The cell's worlds: L_C (tip, centre, top) x repeats, SI, angles in rad."""
+def cell_table(
+    cell: dict, repeats: int, seed: int, exp: cx.ExperimentConfig | None = None
+) -> dict[str, np.ndarray]:
+    """The cell's worlds: L_C (tip, centre, top: ``exp``'s positions for the preset's geometry,
+    the default config's when None) x repeats, SI, angles in rad."""
     md, mb = repeat_factors(repeats, seed)
-    lc = np.array(cx.LC_MM[PRESETS[cell["preset"]].kind]) * MM
+    exp = exp or cx.ExperimentConfig()
+    lc = np.array(exp.setup(PRESETS[cell["preset"]].kind).lc_mm) * MM
     n = len(lc) * repeats
     return {
         "L_C": np.repeat(lc, repeats),
@@ -369,7 +375,7 @@ def run_sweep(cfg: SweepConfig, out: Path, progress: bool = True) -> dict:
     bar = tqdm(total=n_slices, desc=f"sweep {geometry}", disable=not progress)
     try:  # the bar is closed before an error line is printed
         for (preset, mu), ix in groups.items():
-            tabs = [cell_table(cells[i], grid.repeats, cfg.seed) for i in ix]
+            tabs = [cell_table(cells[i], grid.repeats, cfg.seed, cfg.experiment) for i in ix]
             table = {k: np.concatenate([t[k] for t in tabs]) for k in cx.WORLD_KEYS}
             owner = np.repeat(np.arange(len(ix)), 3 * grid.repeats)
             nw = len(owner)
@@ -718,17 +724,17 @@ def _run_slice(
     return summ
 
 
-def _h0_mm(preset: str, exp: cx.ExperimentConfig) -> float:
+def h0_mm(preset: str, exp: cx.ExperimentConfig) -> float:
     """Start depth of the tip: the hole depth less the start gap above the floor."""
     return PRESETS[preset].hole_depth_mm - exp.sim_options().tip_gap_mm
 
 
 def _cell_result(cell: dict, d: dict, grid: Grid, seed: int, exp: cx.ExperimentConfig) -> dict:
     geometry = PRESETS[cell["preset"]].kind
-    lcs = cx.LC_MM[geometry]
+    lcs = exp.setup(geometry).lc_mm
     r = grid.repeats
     tab = d["table"]
-    h0 = _h0_mm(cell["preset"], exp)
+    h0 = h0_mm(cell["preset"], exp)
     qs = cx.quasi_static(cell["preset"], cell["mu"], tab, h0)
     qs_late = cx.quasi_static_peaks(qs, h0, cx.EARLY_MM[geometry])
     qs_all = cx.quasi_static_peaks(qs, h0, 0.0)
@@ -840,7 +846,7 @@ def write_results(result: dict, out: Path) -> list[Path]:
     g = result["geometry"]
     jpath = out / f"compliance_sweep_{g}.json"
     cpath = out / f"compliance_sweep_{g}.csv"
-    lcs = cx.LC_MM[g]
+    lcs = lc_positions(result)
     f = io.StringIO()
     w = csv.writer(f)
     w.writerow(
@@ -886,10 +892,17 @@ def clean_json(o):
     return o
 
 
+def lc_positions(result: dict) -> tuple[float, ...]:
+    """The L_C positions (mm above the tip) of a sweep result: its experiment's, recorded in
+    its settings when they are not the defaults (``compliance.config_dict``)."""
+    g = result["geometry"]
+    recorded = result.get("settings", {}).get("experiment", {}).get(g)
+    return tuple(recorded["lc_mm"]) if recorded else cx.ExperimentConfig().setup(g).lc_mm
+
+
 def summary_table(result: dict) -> str:
     """A markdown table of the cells: simulated reductions with intervals beside the oracle's."""
-    g = result["geometry"]
-    lcs = cx.LC_MM[g]
+    lcs = lc_positions(result)
 
     def red(d):
         if d["value"] is None:
@@ -952,10 +965,7 @@ def write_figures(result: dict, out: Path) -> list[Path]:
     """``reduction_vs_regime_<g>.png`` (simulated reductions with intervals over the oracle's,
     against K_lat L_C,top^2 / K_theta, R1 marked) and ``force_depth_<g>.png`` (mean F_z against
     depth per L_C: the cell nearest R1 beside a K_theta = 300 N m/rad cell)."""
-    import matplotlib
-
     matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
 
     g = result["geometry"]
     out = Path(out)

@@ -21,6 +21,8 @@ import mujoco
 import numpy as np
 
 from peghole_mjx._mjx import mjx
+from peghole_mjx.geometry import mjcf
+from peghole_mjx.geometry.parts import resolve_representation
 from peghole_mjx.geometry.specs import MM, DualSpec, PegHoleSpec
 
 #: the drop test passes if the tip ends within this distance of the hole bottom
@@ -78,9 +80,7 @@ def free_peg_model(
     spec: PegHoleSpec, peg_single_hull: bool = False, representation: str | None = None
 ) -> mujoco.MjModel:
     """The free peg above its hole block (keyframe ``mouth``)."""
-    from peghole_mjx.geometry.mjcf import build_scene
-
-    return build_scene(
+    return mjcf.build_scene(
         spec, robot=False, peg_single_hull=peg_single_hull, representation=representation
     ).compile()
 
@@ -260,9 +260,6 @@ def check_spec(
     name: str, spec: PegHoleSpec, mjx_too: bool = True, representation: str | None = None
 ) -> PresetReport:
     """Run the clearance measurement and drop tests for one spec in one representation."""
-    from peghole_mjx.geometry.mjcf import build_scene
-    from peghole_mjx.geometry.parts import resolve_representation
-
     rep = resolve_representation(spec, representation)
     m = free_peg_model(spec, representation=rep)
     nominal = spec.clearance_mm
@@ -270,7 +267,7 @@ def check_spec(
     err_pct = 100.0 * (eff - nominal) / nominal
     err_max_pct = 100.0 * (eff_max - nominal) / nominal
     drop = drop_test(spec, m, mjx_too=mjx_too)
-    scene = build_scene(spec, representation=rep).compile()
+    scene = mjcf.build_scene(spec, representation=rep).compile()
     sizes = mjx_buffer_sizes(scene)
     failures = []
     # a round hole's nominal clearance holds in every direction; a rectangular one's only

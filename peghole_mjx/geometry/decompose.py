@@ -18,11 +18,16 @@ import warnings
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
 
+import mujoco
 import numpy as np
+from scipy.spatial import ConvexHull
 
+from peghole_mjx import fileio
 from peghole_mjx._optional import optional_import
 from peghole_mjx.errors import UserInputError
+from peghole_mjx.geometry.mjcf import SimOptions, _set_options
 from peghole_mjx.geometry.specs import MM, DualSpec, PegHoleSpec, RectSpec
+from peghole_mjx.validation import RANGES, check, dumps
 
 #: warn when the hulls' excess deviation exceeds this fraction of the radial clearance
 WARN_FRACTION = 0.25
@@ -56,8 +61,6 @@ class CoacdParams:
     def __post_init__(self):
         """Refuse values CoACD aborts on or never finishes with (ranges in
         ``peghole_mjx.validation.RANGES``)."""
-        from peghole_mjx.validation import check
-
         for name in (
             "threshold",
             "max_convex_hull",
@@ -95,7 +98,7 @@ def load_mesh(path: str | Path, units: str = "mm"):
         raise UserInputError(f"{path} holds no triangles")
     mesh.merge_vertices()
     if not mesh.is_watertight:
-        from trimesh.grouping import group_rows
+        from trimesh.grouping import group_rows  # the cad extra: imported where it is used
 
         open_edges = len(group_rows(mesh.edges_sorted, require_count=1))
         raise UserInputError(
@@ -255,8 +258,6 @@ def check_assembly(peg, hole, units: str = "mm") -> None:
     The checks are sampled (:data:`CHECK_SAMPLES` surface points per part and every vertex):
     a feature narrower than the sample spacing can escape them.
     """
-    from peghole_mjx.validation import RANGES
-
     rng = RANGES["cad_part_mm"]
     for label, mesh in (("peg", peg), ("hole", hole)):
         extent = float(np.max(mesh.extents)) / MM
@@ -382,8 +383,6 @@ def write_user_mjcf(
     Returns the XML path and the hole depth (m) if a hole bottom was found under the peg.
     The keyframe ``mouth`` lifts the peg so that its tip is at the top of the hole block.
     """
-    from peghole_mjx import fileio
-
     xml, depth = user_mjcf(peg, hole, peg_hulls, hole_hulls, friction, peg_mass_kg, sim)
     out.mkdir(parents=True, exist_ok=True)
     return fileio.write_text(out / "user_peghole.xml", xml), depth
@@ -399,10 +398,6 @@ def user_mjcf(
     sim=None,
 ) -> tuple[str, float | None]:
     """The MJCF text of :func:`write_user_mjcf` (compiled once to check it) and the depth."""
-    import mujoco
-
-    from peghole_mjx.geometry.mjcf import SimOptions, _set_options
-
     sim = sim or SimOptions()
     s = mujoco.MjSpec()
     s.modelname = "user_peghole"
@@ -475,8 +470,6 @@ def user_mjcf(
 
 
 def _hull_volume(vertices: np.ndarray) -> float:
-    from scipy.spatial import ConvexHull
-
     return float(ConvexHull(vertices).volume)
 
 
@@ -493,8 +486,6 @@ def decompose_parts(
     warn_fraction: float = WARN_FRACTION,
 ) -> DecomposeReport:
     """The whole user-part pipeline: load, decompose, measure, write MJCF and report.json."""
-    from peghole_mjx.validation import check, dumps
-
     friction = check("friction", friction)
     warn_fraction = check("warn_fraction", warn_fraction)
     if peg_mass_kg is not None:
@@ -504,7 +495,6 @@ def decompose_parts(
     peg = load_mesh(peg_path, units)
     hole = load_mesh(hole_path, units)
     check_assembly(peg, hole, units)  # a peg in its hole, before any decomposition or MJCF
-    from peghole_mjx import fileio
 
     out = Path(out_dir)
     fileio.check_out_dir(out)

@@ -3,7 +3,8 @@
 MJX-JAX's box-box routine (``collision_convex._box_box``, mujoco-mjx 3.17) misses shallow
 contacts of a slightly tilted peg box against a wall box: from the same state MuJoCo C finds
 two contacts per wall at 0.7-0.9 um penetration and MJX none, so the tilted peg falls in, is
-thrown out on the next step and chatters between the walls (docs/contact.md). A straight rigid
+thrown out on the next step and chatters between the walls (docs/research/contact.md). A straight
+rigid
 peg in a hole can only touch the walls with its tip edges, and the peg's sides can only be
 touched by the hole's mouth edges; so the contact features are modelled directly:
 

@@ -18,6 +18,7 @@ from pathlib import Path
 import mujoco
 import numpy as np
 
+from peghole_mjx import fileio
 from peghole_mjx.errors import UserInputError
 from peghole_mjx.geometry import edges
 from peghole_mjx.geometry.parts import (
@@ -59,16 +60,18 @@ class SimOptions:
     resting in two-point contact. A 1 s friction time constant removes the bounce (both walls
     loaded in >= 94 % of physics steps in two-point windows, per-step peak ~1x the 20 ms mean)
     while a sliding contact still carries mu * N (measured mu_eff 0.26 at mu 0.266). Evidence:
-    ``peghole models contact-check`` (benchmarks/results/contact_check.json, docs/contact.md).
+    ``peghole models contact-check`` (benchmarks/results/evals/contact_check.json,
+    docs/research/contact.md).
     Slow slides under large normal forces get less than mu * N: the arm-held peg of the
-    compliance experiment keeps mu_eff 0.26 down to 0.5 mm/s (benchmarks/pull_speed.py), a free
+    compliance experiment keeps mu_eff 0.26 down to 0.5 mm/s (benchmarks/studies/pull_speed.py), a
+    free
     peg jammed under 80-95 N normal forces at mu 0.01 sliding at 2 mm/s carries 15-39 % less F_z
-    than Coulomb rows, and as much at 5 and 20 mm/s (``benchmarks/capsule_fidelity.py
-    jam_envs_friction``, docs/models.md). Under the tens of newtons of normal force of the
+    than Coulomb rows, and as much at 5 and 20 mm/s (``benchmarks/studies/capsule_fidelity.py
+    jam_envs_friction``, docs/research/models.md). Under the tens of newtons of normal force of the
     tilted dual experiment at 0.5 mm/s mu_eff falls to 0.04-0.17 at mu 0.266; no friction
-    model of the map in ``benchmarks/friction_frontier.py`` (time constants, Coulomb rows,
+    model of the map in ``benchmarks/studies/friction_frontier.py`` (time constants, Coulomb rows,
     ``impratio``, no-slip) holds mu there and both walls at 20 mm/s within the experiment's
-    bounds (docs/contact.md).
+    bounds (docs/research/contact.md).
     ``None``: the frictional rows use ``solref`` (MuJoCo's default).
     """
 
@@ -118,8 +121,8 @@ def _set_options(s: mujoco.MjSpec, sim: SimOptions) -> None:
     # +4 %), the dual compliance pull's late peak at L_C = top 0.12 N (off: 0.17 N = MJX =
     # oracle). The price: off, C returns one contact per mesh pair, so a face resting on a
     # face sinks a little deeper (the dual mesh drop test's gap -3.5 to -12 um, on -0.2 um;
-    # MJX-JAX -1.2 um). Box and capsule pairs do not use CCD. Evidence: docs/models.md
-    # (capsule fidelity), benchmarks/results/models_check.json, 2026-11-29.
+    # MJX-JAX -1.2 um). Box and capsule pairs do not use CCD. Evidence: docs/research/models.md
+    # (capsule fidelity), benchmarks/results/evals/models_check.json, 2026-11-29.
     s.option.disableflags |= mujoco.mjtDisableBit.mjDSBL_MULTICCD
     s.compiler.autolimits = True
 
@@ -235,7 +238,8 @@ class ContactCap:
 
     ``measured_max``: the most active contacts (distance <= 0) seen in any world at any physics
     step, over MuJoCo C and MJX-JAX rollouts of the env under the scripted and a random policy
-    (``benchmarks/contact_caps.py``, ``benchmarks/results/contact_caps.json``); ``cap``: the
+    (``benchmarks/perf/contact_caps.py``, ``benchmarks/results/perf/contact_caps.json``); ``cap``:
+    the
     ``max_contact_points`` set in the scene, above it with a margin.
     """
 
@@ -245,8 +249,8 @@ class ContactCap:
 
 #: (scene kind, representation) -> measured maximum and cap (see ContactCap), measured
 #: 2026-11-30 on the 2-core CPU (8 worlds, 400 env steps in MuJoCo C, 300 in MJX-JAX, scripted
-#: and random actions, in each default env and its hard variant; benchmarks.contact_caps,
-#: benchmarks/results/contact_caps.json). cap 0 = none. Rect: the box scene's 5 box-box pairs
+#: and random actions, in each default env and its hard variant; benchmarks.perf.contact_caps,
+#: benchmarks/results/perf/contact_caps.json). cap 0 = none. Rect: the box scene's 5 box-box pairs
 #: allocate 20 contacts (4 each) and a random rollout makes all 20 active; the edges scene (the
 #: default) allocates 52 (2 per capsule-box pair) and at most 20 are active (RectExtract and
 #: RectExtractHard alike), uncapped. Dual: the mesh scene is the exact-geometry reference and
@@ -451,8 +455,6 @@ def write_scene(
     contact_cap: int | None = None,
 ) -> Path:
     """Write the scene as a self-contained MJCF (meshes inline) and return its path."""
-    from peghole_mjx import fileio
-
     out = Path(out_dir)
     s = build_scene(
         spec, robot=robot, sim=sim, representation=representation, contact_cap=contact_cap
@@ -488,9 +490,6 @@ def write_scenes(
     Both scenes are built and compiled in memory first, then written together (both files or
     neither). ``representation=None``: the preset's default (``parts.resolve_representation``).
     """
-    from peghole_mjx import fileio
-    from peghole_mjx.geometry.parts import resolve_representation
-
     out = Path(out)
     rep = resolve_representation(spec, representation)
     check_edges_fit(spec, rep)

@@ -48,6 +48,7 @@ from dataclasses import dataclass, field
 from typing import Literal
 
 import numpy as np
+from scipy.spatial import ConvexHull
 
 from peghole_mjx.errors import UserInputError
 from peghole_mjx.geometry.specs import MM, DualSpec, PegHoleSpec, RectSpec
@@ -62,7 +63,7 @@ REPRESENTATIONS = ("capsule", "mesh", "cylinder")
 RECT_REPRESENTATIONS = ("edges", "box")
 RECT_DEFAULT_REPRESENTATION = "edges"
 #: the dual default (the GPU-scale one: 4.05 MB of XLA traffic per world-step at its contact cap
-#: vs the mesh scene's 67.2 MB; benchmarks/results/cost_cpu-2core.json)
+#: vs the mesh scene's 67.2 MB; benchmarks/results/perf/cost_cpu-2core.json)
 DUAL_DEFAULT_REPRESENTATION = "capsule"
 #: representations each simulator implementation can collide
 IMPL_REPRESENTATIONS = {
@@ -177,7 +178,6 @@ class ConvexPart:
             r, h = self.half_size
             cap = 4.0 / 3.0 * np.pi * r**3 if self.kind == "capsule" else 0.0
             return float(np.pi * r**2 * 2 * h + cap)
-        from scipy.spatial import ConvexHull
 
         return float(ConvexHull(self.vertices).volume)
 

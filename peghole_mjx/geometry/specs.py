@@ -14,7 +14,8 @@ Extractability (thesis Sec 2.3.1 and Sec 3.2):
 
 * rectangular peg-hole: ``w' < w`` and ``v' < v``.
 
-Errata decisions (see ``docs/errata.md``): E1 (dual sample 3 is r = 6.05 mm, not 6.5 mm) and
+Errata decisions (see ``docs/research/errata.md``): E1 (dual sample 3 is r = 6.05 mm, not 6.5 mm)
+and
 E2 (rect sample 3 is 60.05 x 40.05 mm, not 60.5 x 40.5 mm) are applied to the presets; the
 printed values are rejected by :func:`validate` with an :class:`InfeasibleGeometryError`.
 """
@@ -27,6 +28,7 @@ from dataclasses import dataclass, field
 from typing import Literal
 
 from peghole_mjx.errors import InfeasibleGeometryError
+from peghole_mjx.validation import RANGES
 
 MM = 1e-3  # metres per millimetre
 
@@ -114,8 +116,6 @@ PegHoleSpec = RectSpec | DualSpec
 def _require_positive(values: dict[str, float]) -> None:
     """Every size is a real number (not a boolean) within ``RANGES["size_mm"]`` (the smallest
     part MuJoCo builds, the robot's reach), every mass within ``RANGES["mass_kg"]``."""
-    from peghole_mjx.validation import RANGES  # the size, reach and mass limits
-
     for name, v in values.items():
         if isinstance(v, bool) or not isinstance(v, int | float):
             raise InfeasibleGeometryError(

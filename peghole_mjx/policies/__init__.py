@@ -15,7 +15,7 @@ A policy directory holds two files:
   layout), one array per leaf named by its tree path (``0/mean``, ``1/params/hidden_0/kernel``;
   :mod:`peghole_mjx.treenames`).
 
-``policy.json`` carries ``format_version`` (:data:`FORMAT_VERSION`, docs/training.md, "Policy
+``policy.json`` carries ``format_version`` (:data:`FORMAT_VERSION`, docs/guide/training.md, "Policy
 format"): 2 names the arrays by tree path and loads them by name; 1 (before 2026-11-29) stored
 them by position (``leaf_0000``...) and is upgraded when loaded (:func:`upgrade_policy`
 rewrites a folder as 2: ``python train/upgrade_policy.py DIR``); any other version is refused
@@ -38,17 +38,22 @@ from typing import Any
 import jax
 import jax.numpy as jnp
 import numpy as np
+from brax.training.acme import running_statistics, specs
+from brax.training.agents.sac import networks as sac_networks
 
+from peghole_mjx import envs, fileio
+from peghole_mjx.checkpoint_folders import newest_policy_checkpoint
 from peghole_mjx.errors import CorruptFileError, UserInputError
 from peghole_mjx.treenames import differences, named_leaves
+from peghole_mjx.validation import MAX_HIDDEN_LAYERS, RANGES, loads
 
 POLICY_DIR = Path(__file__).resolve().parent
 #: committed pretrained policies: name -> directory inside the package
 PRETRAINED = {
     "rect": POLICY_DIR / "rect_extract",
     "dual": POLICY_DIR / "dual_extract",
-    "rect_hard": POLICY_DIR / "rect_extract_hard",  # RectExtractHard (docs/training.md)
-    "dual_hard": POLICY_DIR / "dual_extract_hard",  # DualExtractHard (docs/training.md)
+    "rect_hard": POLICY_DIR / "rect_extract_hard",  # RectExtractHard (docs/guide/training.md)
+    "dual_hard": POLICY_DIR / "dual_extract_hard",  # DualExtractHard (docs/guide/training.md)
 }
 #: the format ``save_policy`` writes
 FORMAT_VERSION = 2
@@ -75,10 +80,8 @@ class PolicyBundle:
     def make_env(self, extra_overrides: dict | None = None):
         """The env the policy was trained on; ``extra_overrides`` change it (a cross
         evaluation: :func:`peghole_mjx.training.evaluate.evaluate` with ``cross=True``)."""
-        from peghole_mjx.envs import load
-
         over = {**self.env_overrides, **(extra_overrides or {})}
-        env = load(self.env_name, config_overrides=over or None)
+        env = envs.load(self.env_name, config_overrides=over or None)
         self.check_env(env)
         return env
 
@@ -103,9 +106,6 @@ class PolicyBundle:
 
 def make_networks(network: dict[str, Any]):
     """Brax SAC networks from a network description (see ``policy.json``)."""
-    from brax.training.acme import running_statistics
-    from brax.training.agents.sac import networks as sac_networks
-
     normalize = running_statistics.normalize if network["normalize_observations"] else None
     kwargs = {"hidden_layer_sizes": tuple(network["hidden_layer_sizes"])}
     if normalize is not None:
@@ -127,8 +127,6 @@ def make_policy_fn(network: dict[str, Any], deterministic: bool = True):
 
 @functools.lru_cache(maxsize=32)
 def _policy_fn(network_json: str, deterministic: bool):
-    from brax.training.agents.sac import networks as sac_networks
-
     make_policy = sac_networks.make_inference_fn(make_networks(json.loads(network_json)))
 
     def policy(params, obs, rng):
@@ -140,8 +138,6 @@ def _policy_fn(network_json: str, deterministic: bool):
 
 def init_params(network: dict[str, Any], seed: int = 0):
     """Fresh (normaliser, policy) parameters: the template that ``params.npz`` fills."""
-    from brax.training.acme import running_statistics, specs
-
     nets = make_networks(network)
     norm = running_statistics.init_state(
         specs.Array((int(network["observation_size"]),), jnp.dtype("float32"))
@@ -155,8 +151,6 @@ def save_policy(path: str | Path, params, meta: dict[str, Any], atomic: bool = T
     ``atomic``: both files are written into a temporary folder that then replaces ``path``
     (both files or neither); otherwise into ``path`` itself (already a temporary folder).
     """
-    from peghole_mjx import fileio
-
     path = Path(path)
     target = path.with_name(path.name + ".tmp") if atomic else path
     if atomic and target.exists():
@@ -197,7 +191,6 @@ def resolve_policy_path(name: str | Path) -> Path:
     # other unfinished folders are not checkpoints)
     if (path / "final_policy" / "policy.json").exists():
         return path / "final_policy"
-    from peghole_mjx.training.checkpoints import newest_policy_checkpoint
 
     ckpt = newest_policy_checkpoint(path / "checkpoints")
     if ckpt is not None:
@@ -212,8 +205,6 @@ def check_meta(meta: Any, where: str) -> dict[str, Any]:
     """Schema of ``policy.json``, checked before anything is allocated: format version, a
     known env (the same one its training config names), and a network whose sizes are within
     :data:`peghole_mjx.validation.RANGES`. Returns ``meta``; raises :class:`CorruptFileError`."""
-    from peghole_mjx.envs import ALL_ENVS
-    from peghole_mjx.validation import MAX_HIDDEN_LAYERS, RANGES
 
     def need(cond: bool, what: str) -> None:
         if not cond:
@@ -232,7 +223,10 @@ def check_meta(meta: Any, where: str) -> dict[str, Any]:
         f"format_version {version!r} is unknown: this peghole_mjx reads {versions}",
     )
     env = meta.get("env")
-    need(isinstance(env, str) and env in ALL_ENVS, f"env {env!r} is not one of {list(ALL_ENVS)}")
+    need(
+        isinstance(env, str) and env in envs.ALL_ENVS,
+        f"env {env!r} is not one of {list(envs.ALL_ENVS)}",
+    )
     train_config = meta.get("train_config")
     need(
         train_config is None or isinstance(train_config, dict),
@@ -315,8 +309,6 @@ def _read(path: Path) -> tuple[dict[str, Any], dict[str, np.ndarray]]:
     ``params.npz`` by tree path, in the network's tree order (format 1 upgraded), each checked
     against the network in ``policy.json``: name, shape, dtype, finite numbers, and a
     normaliser consistent with ``normalize_observations``. All before anything is compiled."""
-    from peghole_mjx.validation import loads
-
     try:
         meta = loads((path / "policy.json").read_text())
     except (ValueError, UnicodeDecodeError) as exc:
@@ -421,8 +413,6 @@ def upgrade_policy(path: str | Path) -> bool:
     arrays unchanged bit for bit, the rest of ``policy.json`` as it was; other files in the
     folder are kept. The folder is rewritten as a copy that then replaces it (all or
     nothing). Returns False when it already was current."""
-    from peghole_mjx import fileio
-
     path = Path(path)
     meta, arrays = _read(path)
     if meta["format_version"] == FORMAT_VERSION:

@@ -1,15 +1,15 @@
-"""Checkpoint folders of a training run: which exist, which are intact, which to resume from.
+"""Checkpoints of a training run: the one writer (:func:`save`) and reader (:func:`load`) of a
+run's saved state, which to resume from, and which to keep.
 
-``checkpoints/step_N/`` (N zero-padded to 10 digits) holds ``policy.json`` and
-``params.npz``; the :data:`KEEP_STATES` newest also hold ``state/`` and ``state.json`` (the
-whole learner, for ``--resume``). ``state/`` is an orbax checkpoint (``StandardCheckpointer``)
-of the carry as nested dicts named by the carry's tree paths (``ts/q_params/...``,
-``env_state/data/qpos``), so it is restored by name, not by leaf order (:func:`save_state`,
-:func:`restore_state`). ``manifest.json``, written last, lists every file (those inside
-``state/`` too) with its size and SHA-256. A checkpoint is written in ``step_N.tmp/`` (every
-file fsynced, then the folders) and renamed to ``step_N/``, so a folder named ``step_N`` is
-complete; other names (``step_N.tmp``, ``step_N.old``, ``step_N.corrupt``) are never
-checkpoints.
+``checkpoints/step_N/`` (names, manifest and policy look-up: :mod:`peghole_mjx.checkpoint_folders`)
+holds the run's policy files and, in the :data:`KEEP_STATES` newest, ``state/`` and
+``state.json`` (the whole learner, for ``--resume``). ``state/`` is an orbax checkpoint
+(``StandardCheckpointer``) of the carry as nested dicts named by the carry's tree paths
+(``ts/q_params/...``, ``env_state/data/qpos``), so it is restored by name, not by leaf order
+(:func:`save_state`, :func:`restore_state`); ``state.json`` holds the env-step count and the
+driver's schedule (``wall_s``, ``n_eval``, ... : :class:`peghole_mjx.training.run.Run`). A
+checkpoint is written in ``step_N.tmp/`` (every file fsynced, then the folders), sealed with its
+manifest and renamed to ``step_N/``, so a folder named ``step_N`` is complete.
 
 On resume the newest checkpoint whose state verifies is used; a corrupt newer one (truncated,
 garbled, a checksum that does not match, no manifest) is renamed ``step_N.corrupt`` with a
@@ -22,7 +22,6 @@ from __future__ import annotations
 
 import json
 import os
-import re
 import shutil
 import sys
 import zipfile
@@ -30,34 +29,49 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
+import jax
 import numpy as np
+import orbax.checkpoint as ocp
 
 from peghole_mjx import fileio
+from peghole_mjx.checkpoint_folders import (
+    MANIFEST,
+    POLICY_FILES,
+    checkpoint_dirs,
+    checkpoint_name,
+    seal,
+    verify,
+)
 from peghole_mjx.errors import CorruptFileError, UserInputError
 from peghole_mjx.treenames import differences, named_leaves, path_name
+from peghole_mjx.validation import dumps
 
-MANIFEST = "manifest.json"
 #: ``state`` is a folder (orbax); the manifest lists the files inside it
+__all__ = [  # the folder names and checks of peghole_mjx.checkpoint_folders belong to the API
+    "CORRUPTION",
+    "KEEP_STATES",
+    "MANIFEST",
+    "POLICY_FILES",
+    "STATE_FILES",
+    "checkpoint_dirs",
+    "checkpoint_name",
+    "has_state",
+    "load",
+    "newest_valid",
+    "prune_states",
+    "restore_state",
+    "save",
+    "save_state",
+    "set_aside",
+    "verify",
+    "write",
+]
+
 STATE_FILES = ("state", "state.json")
 #: what checkpoints written before the orbax format hold instead of ``state/``
 LEGACY_STATE = "state.npz"
-POLICY_FILES = ("policy.json", "params.npz")
 #: checkpoints that keep their full state (the newest and the one before, for a fallback)
 KEEP_STATES = 2
-_NAME = re.compile(r"^step_(\d+)$")
-
-
-def checkpoint_name(step: int) -> str:
-    return f"step_{step:010d}"
-
-
-def checkpoint_dirs(ckpt_dir: str | Path) -> list[Path]:
-    """Complete checkpoint folders, oldest first (by step; temporary folders excluded)."""
-    ckpt_dir = Path(ckpt_dir)
-    if not ckpt_dir.is_dir():
-        return []
-    found = [(int(m.group(1)), p) for p in ckpt_dir.iterdir() if (m := _NAME.match(p.name))]
-    return [p for _, p in sorted(found) if p.is_dir()]
 
 
 def has_state(path: Path) -> bool:
@@ -76,9 +90,7 @@ def _nest(flat: dict[str, Any]) -> dict[str, Any]:
     return nested
 
 
-def _checkpointer():
-    import orbax.checkpoint as ocp
-
+def _checkpointer() -> ocp.StandardCheckpointer:
     return ocp.StandardCheckpointer()
 
 
@@ -105,8 +117,6 @@ def restore_state(folder: Path, template: Any, empty_leaves: dict[str, Any]) -> 
     Leaves are matched by tree path: a saved state whose paths, shapes or dtypes differ from
     ``template``'s raises :class:`UserInputError` naming the first differences; leaves are
     numpy arrays of ``template``'s dtypes."""
-    import jax
-
     want = named_leaves(template)
     ckptr = _checkpointer()
     try:
@@ -135,51 +145,6 @@ def _check_same_structure(folder: Path, have: dict, want: dict) -> None:
             "the config or the peghole_mjx version changed since the checkpoint; its policy "
             "(policy.json, params.npz) still loads with peghole evaluate"
         )
-
-
-sha256 = fileio.sha256_file  # the manifest's file hash
-
-
-def seal(folder: Path) -> None:
-    """Write ``manifest.json``: size and SHA-256 of every file in ``folder`` and below."""
-    files = {
-        p.relative_to(folder).as_posix(): {"bytes": p.stat().st_size, "sha256": sha256(p)}
-        for p in sorted(folder.rglob("*"))
-        if p.is_file() and p.name != MANIFEST and not p.name.startswith(".")
-    }
-    fileio.write_text(folder / MANIFEST, json.dumps({"files": files}, indent=2) + "\n")
-
-
-def verify(path: Path, need: tuple[str, ...] = POLICY_FILES) -> None:
-    """Raise :class:`CorruptFileError` unless the files ``need`` of checkpoint ``path`` (a
-    folder in ``need``: every file the manifest lists in it) are present and match its
-    manifest. A checkpoint without a manifest (written by an older peghole_mjx) passes for
-    its policy files when they exist (loading them checks them further); its state never
-    does (a state is always written with a manifest)."""
-    missing = [f for f in need if not (path / f).exists()]
-    if missing:
-        raise CorruptFileError(f"{path}: missing {', '.join(missing)}")
-    mpath = path / MANIFEST
-    if not mpath.exists():
-        if any((path / f).is_dir() for f in need):
-            raise CorruptFileError(f"{path}: no {MANIFEST}")
-        return
-    try:
-        listed = json.loads(mpath.read_text())["files"]
-        for name in need:
-            entries = [k for k in listed if k == name or k.startswith(name + "/")]
-            if not entries:
-                raise CorruptFileError(f"{path}: {name} is not in its manifest")
-            for key in entries:
-                entry, actual = listed[key], path / key
-                if not actual.is_file():
-                    raise CorruptFileError(f"{actual}: missing")
-                if actual.stat().st_size != entry["bytes"] or sha256(actual) != entry["sha256"]:
-                    raise CorruptFileError(f"{actual}: checksum does not match its manifest")
-    except CorruptFileError:
-        raise
-    except (ValueError, KeyError, TypeError) as exc:
-        raise CorruptFileError(f"{mpath}: unreadable manifest ({exc})") from None
 
 
 def set_aside(path: Path, reason: str) -> Path:
@@ -214,8 +179,6 @@ def write(ckpt_dir: Path, step: int, write_files: Callable[[Path], None]) -> Pat
     """Write checkpoint ``step``: ``write_files(folder)`` fills ``step_N.tmp/``, which is then
     sealed (manifest), fsynced and renamed to ``step_N/``; then :func:`prune_states`. A kill or
     a failed write at any point leaves the earlier checkpoints as they were."""
-    from peghole_mjx import fileio
-
     final = Path(ckpt_dir) / checkpoint_name(step)
     tmp = final.with_name(final.name + ".tmp")
     if tmp.exists():
@@ -275,13 +238,39 @@ def newest_valid(
     return None
 
 
-def newest_policy_checkpoint(ckpt_dir: Path) -> Path | None:
-    """The newest checkpoint whose policy files verify (skipping corrupt ones)."""
-    for path in reversed(checkpoint_dirs(ckpt_dir)):
-        try:
-            verify(path, POLICY_FILES)
-        except CorruptFileError as exc:
-            print(f"warning: skipping checkpoint {path.name}: {exc}", file=sys.stderr)
-            continue
-        return path
-    return None
+# ---------------------------------------------------------------------- one checkpoint
+def save(
+    ckpt_dir: Path,
+    step: int,
+    state: Any,
+    schedule: dict[str, Any],
+    write_policies: Callable[[Path], None],
+) -> Path:
+    """Write the checkpoint of ``step`` env steps (:func:`write`): the run's policies
+    (``write_policies(folder)``: one policy, or one per seed), the learner's ``state`` (a tree
+    of host arrays, :func:`save_state`) and ``state.json`` (``step``, the driver's
+    ``schedule`` and the names of the state's zero-size leaves). Every training driver writes
+    its checkpoints here (:mod:`peghole_mjx.training.run`)."""
+
+    def write_files(folder: Path) -> None:
+        write_policies(folder)
+        saved = save_state(folder, state)
+        text = dumps({"step": step, **schedule, **saved}, indent=2) + "\n"
+        fileio.write_text(folder / STATE_FILES[1], text)
+
+    return write(ckpt_dir, step, write_files)
+
+
+def load(path: Path, template: Any, schedule_keys: tuple[str, ...] = ()) -> tuple[Any, dict]:
+    """``(state, schedule)`` of checkpoint ``path`` (written by :func:`save`): the state in the
+    structure and dtypes of ``template``, as host arrays (:func:`restore_state`), and
+    ``state.json`` without its bookkeeping (``step`` and the driver's schedule). A
+    ``state.json`` without a whole-number ``step`` or without one of ``schedule_keys`` is a
+    :class:`CorruptFileError`."""
+    sched = json.loads((path / STATE_FILES[1]).read_text())
+    if not isinstance(sched, dict) or not isinstance(sched.get("step"), int):
+        raise CorruptFileError(f"{path}/state.json holds no step")
+    if not set(schedule_keys) <= set(sched):
+        raise CorruptFileError(f"{path}/state.json lacks the evaluation schedule")
+    empty = sched.pop("empty_leaves", {})
+    return restore_state(path, template, empty), sched

@@ -1,5 +1,6 @@
 """Training hyperparameters: :class:`TrainConfig` owns every default (the values shared by all
-envs and profiles, and the compliance strategy); one JSON file per env in ``train/configs/``
+envs and profiles; :data:`TRAINING_ENV_DEFAULTS` the env config entries training sets, the
+compliance strategy); one JSON file per env in ``train/configs/``
 (kept apart from the env configs in :mod:`peghole_mjx.envs`) holds three profiles of the
 sizes that differ (steps, worlds, batch, replay) and any env-specific change.
 
@@ -26,11 +27,16 @@ Keys, and the choices made where Brax's defaults differ from the thesis (stack_n
   ``normalize_observations``: running mean/std normaliser, on.
 * ``steps_per_call``: batched env steps per jitted call (progress-bar granularity), 25;
   ``seed``: 0; ``env_overrides``: flat env-config overrides (e.g. ``episode_length``).
-* ``compliance_strategy``: on (RL + CS, thesis Sec 4.2): the action also sets k_xy and
-  K_theta (docs/training.md); off trains with the fixed stiffness. It is written into
-  ``env_overrides`` (``compliance_strategy``), so the env is built with it; the env config's
-  own default (off) applies only to envs built outside training. ``peghole train
-  --compliance-strategy`` and :func:`load_train_config` both default to this field.
+* The compliance strategy is an env config entry (``compliance_strategy``,
+  :mod:`peghole_mjx.envs.config`), set like any other through ``env_overrides``; training
+  turns it on unless told otherwise (:data:`TRAINING_ENV_DEFAULTS`: RL + CS, thesis Sec 4.2:
+  the action also sets k_xy and K_theta, docs/guide/training.md), while the env config's own default
+  (off) applies to envs built outside training. ``peghole train --compliance-strategy on|off``
+  and :func:`load_train_config`'s ``compliance_strategy`` are shorthands for
+  ``env.compliance_strategy``. Decided 2026-12-02: until then ``TrainConfig`` also had a
+  ``compliance_strategy`` field, reconciled with the env override in three places; a
+  ``run.json`` or ``policy.json`` that still carries it is read as the env override
+  (:func:`legacy_config`, the one place).
 """
 
 from __future__ import annotations
@@ -40,12 +46,17 @@ from dataclasses import MISSING, asdict, dataclass, field, fields
 from pathlib import Path
 from typing import Any
 
-from peghole_mjx.errors import UserInputError
+from peghole_mjx import envs, fileio
+from peghole_mjx.errors import CorruptFileError, UserInputError
+from peghole_mjx.validation import MAX_HIDDEN_LAYERS, RANGES, check, dumps, load_json_object
 
 _PKG_CONFIGS = Path(__file__).resolve().parents[1] / "_train_configs"
 _REPO_CONFIGS = Path(__file__).resolve().parents[2] / "train" / "configs"
 CONFIG_DIR = _PKG_CONFIGS if _PKG_CONFIGS.is_dir() else _REPO_CONFIGS
 PROFILES = ("full", "cpu", "quick")
+#: env config entries that training sets unless a run says otherwise (the env config's own
+#: defaults apply to envs built outside training): the compliance strategy on, RL + CS
+TRAINING_ENV_DEFAULTS: dict[str, Any] = {"compliance_strategy": True}
 
 
 @dataclass
@@ -73,38 +84,34 @@ class TrainConfig:
     seed: int = 0
     env_overrides: dict[str, Any] = field(default_factory=dict)
     profile: str = "full"
-    compliance_strategy: bool = True
 
     def as_dict(self) -> dict[str, Any]:
         return asdict(self)
 
     @classmethod
     def from_dict(cls, d: dict[str, Any]) -> TrainConfig:
-        names = {f.name for f in fields(cls)}
+        """The validated config of a mapping (``run.json``'s ``config``, ``policy.json``'s
+        ``train_config``; older records' :data:`LEGACY_KEYS` read as what they became)."""
+        names = {f.name for f in fields(cls)} | set(LEGACY_KEYS)
         if not isinstance(d, dict):
             raise UserInputError(f"training config must be a mapping, got {type(d).__name__}")
         unknown = sorted(str(k) for k in set(d) - names)
         if unknown:
-            raise UserInputError(f"unknown training config keys {unknown}; known: {sorted(names)}")
+            known = sorted(names - set(LEGACY_KEYS))
+            raise UserInputError(f"unknown training config keys {unknown}; known: {known}")
         required = {
             f.name for f in fields(cls) if f.default is MISSING and f.default_factory is MISSING
         }
         missing = sorted(required - set(d))
         if missing:
             raise UserInputError(f"training config lacks the keys {missing}")
-        d = dict(d)
-        in_env = (d.get("env_overrides") or {}) if isinstance(d.get("env_overrides"), dict) else {}
-        if "compliance_strategy" not in d and "compliance_strategy" in in_env:
-            # a run.json written before this field: the env override it trained with
-            d["compliance_strategy"] = in_env["compliance_strategy"]
-        cfg = cls(**d)
+        cfg = cls(**legacy_config(d))
         cfg.validate()
         return cfg
 
     def validate(self) -> None:
         """Type, finiteness and range of every field (``peghole_mjx.validation.RANGES``), then
         the relations between them. Whole-number floats (``1e6``) become integers."""
-        from peghole_mjx.validation import MAX_HIDDEN_LAYERS, RANGES, check
 
         def need(cond: bool, what: str) -> None:
             if not cond:
@@ -135,22 +142,11 @@ class TrainConfig:
             f"normalize_observations must be true or false, got {self.normalize_observations!r}",
         )
         need(isinstance(self.env, str), f"env must be a name, got {self.env!r}")
-        need(
-            isinstance(self.compliance_strategy, bool),
-            f"compliance_strategy must be true or false, got {self.compliance_strategy!r}",
-        )
         need(self.profile in PROFILES, f"profile must be one of {list(PROFILES)}")
         need(
             isinstance(self.env_overrides, dict),
             f"env_overrides must be a mapping, got {self.env_overrides!r}",
         )
-        in_env = self.env_overrides.get("compliance_strategy", self.compliance_strategy)
-        need(
-            in_env == self.compliance_strategy,
-            f"compliance_strategy is {self.compliance_strategy} but env_overrides sets "
-            f"{in_env!r}: set one of them",
-        )
-        self.env_overrides = {**self.env_overrides, "compliance_strategy": self.compliance_strategy}
         chunk = self.num_envs * self.steps_per_call
         need(
             self.eval_every >= chunk,
@@ -175,6 +171,46 @@ def _label(name: str) -> str:
     return f"training config: {name}"
 
 
+#: training config keys of older records, each read as what it became: ``compliance_strategy``
+#: (a field until 2026-12-02) is the env config entry of the same name
+LEGACY_KEYS = ("compliance_strategy",)
+
+
+def legacy_config(config: dict[str, Any]) -> dict[str, Any]:
+    """``config`` (a training config as ``run.json`` or ``policy.json`` records it) with the
+    :data:`LEGACY_KEYS` moved where they live now: ``compliance_strategy`` into
+    ``env_overrides``. A record that sets it both ways differently is refused in one line.
+    The one place that reads them; a copy, ``config`` is left as it is."""
+    if "compliance_strategy" not in config:
+        return config
+    config = dict(config)
+    cs = config.pop("compliance_strategy")
+    if not isinstance(cs, bool):
+        raise UserInputError(
+            f"training config: compliance_strategy must be true or false, got {cs!r}"
+        )
+    over = config.get("env_overrides", {})
+    if isinstance(over, dict):
+        in_env = over.get("compliance_strategy", cs)
+        if in_env != cs:
+            raise UserInputError(
+                f"compliance_strategy is {cs} but env_overrides sets {in_env!r}: set one of them"
+            )
+        config["env_overrides"] = {**over, "compliance_strategy": cs}
+    return config
+
+
+def env_setting(env: str, env_overrides: dict[str, Any], key: str) -> Any:
+    """The env config entry ``key`` (dotted) of env ``env`` built with ``env_overrides``: the
+    override, else the env config's default."""
+    if key in env_overrides:
+        return env_overrides[key]
+    node = envs.get_default_config(env)
+    for part in key.split("."):
+        node = node[part]
+    return node
+
+
 #: config keys that ``--set`` cannot change: each is chosen another way (the env and the
 #: profile pick the JSON file and its sizes; env config entries are set one by one)
 CHOSEN_BY_FLAG = {
@@ -192,8 +228,9 @@ def load_train_config(
 ) -> TrainConfig:
     """The hyperparameters of ``env`` for ``profile``: :class:`TrainConfig`'s defaults, the
     env's JSON file (``common``, if any, then the profile), then flat ``overrides``
-    (``env.KEY`` for the env config), then ``compliance_strategy`` when not None (None: the
-    overrides' or the file's value, else ``TrainConfig.compliance_strategy``)."""
+    (``env.KEY`` for the env config, on :data:`TRAINING_ENV_DEFAULTS` and the file's env
+    overrides). ``compliance_strategy`` (not None) is a shorthand for
+    ``env.compliance_strategy``; the two set differently are refused."""
     if profile not in PROFILES:
         raise UserInputError(f"unknown profile {profile!r}; choose one of {list(PROFILES)}")
     path = CONFIG_DIR / f"{env}.json"
@@ -203,26 +240,28 @@ def load_train_config(
     raw = json.loads(path.read_text())
     d = dict(raw.get("common", {}))
     prof = dict(raw["profiles"][profile])
-    env_over = {**d.pop("env_overrides", {}), **prof.pop("env_overrides", {})}
+    env_over = {
+        **TRAINING_ENV_DEFAULTS,
+        **d.pop("env_overrides", {}),
+        **prof.pop("env_overrides", {}),
+    }
     d.update(prof)
+    given: dict[str, Any] = {}
     for key, value in (overrides or {}).items():
         if key in CHOSEN_BY_FLAG:  # would be silently replaced below: refused instead
             raise UserInputError(f"--set {key}={value}: {CHOSEN_BY_FLAG[key]}")
         if key.startswith("env."):
-            env_over[key[4:]] = value
+            given[key[4:]] = value
         else:
             d[key] = value
     if compliance_strategy is not None:
-        d["compliance_strategy"] = bool(compliance_strategy)
-    if "compliance_strategy" in env_over:  # env.compliance_strategy=...: the same setting
-        cs = env_over.pop("compliance_strategy")
-        if compliance_strategy is not None and cs != d["compliance_strategy"]:
+        cs = given.setdefault("compliance_strategy", bool(compliance_strategy))
+        if cs != bool(compliance_strategy):
             raise UserInputError(
                 f"compliance_strategy={compliance_strategy} and env.compliance_strategy={cs} "
                 "disagree: set one of them"
             )
-        d["compliance_strategy"] = cs
-    d.update(env=env, env_overrides=env_over, profile=profile)
+    d.update(env=env, env_overrides={**env_over, **given}, profile=profile)
     if isinstance(d.get("hidden_layer_sizes"), tuple):
         d["hidden_layer_sizes"] = list(d["hidden_layer_sizes"])
     return TrainConfig.from_dict(d)
@@ -236,6 +275,14 @@ def default(name: str) -> Any:
 
 #: the largest number of seeds a ``--seeds`` run records (``run.json`` key ``seeds``)
 MAX_SEEDS = 4096
+#: a training run's record in its folder
+RUN_RECORD = "run.json"
+
+
+def write_run_record(out: str | Path, meta: dict[str, Any]) -> Path:
+    """Write ``run.json`` of the run in ``out`` (strict JSON, atomically): the one writer of
+    run records (:func:`read_run_record` reads them back)."""
+    return fileio.write_text(Path(out) / RUN_RECORD, dumps(meta, indent=2) + "\n")
 
 
 def read_run_record(out: str | Path, what: str = "--resume", full: bool = True):
@@ -248,10 +295,7 @@ def read_run_record(out: str | Path, what: str = "--resume", full: bool = True):
     (for reading older or partial records, e.g. to label curves). A missing file is a
     :class:`UserInputError`, a damaged one a :class:`CorruptFileError`, in one line naming it.
     """
-    from peghole_mjx.errors import CorruptFileError
-    from peghole_mjx.validation import load_json_object
-
-    path = Path(out) / "run.json"
+    path = Path(out) / RUN_RECORD
     if not path.is_file():
         raise UserInputError(f"{what}: {path} not found (not a training run directory)")
 
@@ -269,6 +313,11 @@ def read_run_record(out: str | Path, what: str = "--resume", full: bool = True):
     if not isinstance(resumed, list) or not all(isinstance(r, dict) for r in resumed):
         raise bad(f"'resumed_with' must be a list of objects, got {resumed!r:.60}")
     if not full:
+        try:
+            meta = {**meta, "config": legacy_config(config)}
+        except UserInputError as exc:
+            raise bad(str(exc)) from None
+        config = meta["config"]
         if not isinstance(config.get("env"), str):
             raise bad(f"config.env must be an env name, got {config.get('env')!r:.60}")
         if not isinstance(config.get("env_overrides", {}), dict):

@@ -12,13 +12,13 @@ from __future__ import annotations
 
 import os
 
+import jax
+
 from peghole_mjx.errors import UserInputError
 
 
 def initialize() -> tuple[int, int]:
     """Join the processes; returns ``(process_index, process_count)``."""
-    import jax
-
     jax.config.update("jax_cpu_collectives_implementation", "gloo")
     kwargs = {}
     for var, key in (("JAX_NUM_PROCESSES", "num_processes"), ("JAX_PROCESS_ID", "process_id")):

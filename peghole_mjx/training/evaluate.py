@@ -21,9 +21,15 @@ from typing import Any
 import jax
 import numpy as np
 
+from peghole_mjx import fileio
+from peghole_mjx import progress as prog
+from peghole_mjx.envs import get_default_config
+from peghole_mjx.envs.config import apply_overrides
+from peghole_mjx.envs.metrics import EPISODE_RECORD
 from peghole_mjx.envs.rollout import SCRIPTED_SPEED_M_S, rollout, scripted_policy
 from peghole_mjx.errors import CorruptFileError, UserInputError
 from peghole_mjx.policies import PolicyBundle, load_policy
+from peghole_mjx.validation import load_json_object
 
 #: the thesis's headline RL numbers (Sec 4.3.2, 4.4; seed_parameters.md R3-R5)
 THESIS_RL = {
@@ -72,8 +78,6 @@ def _config_key(env, ignored=()) -> str:
 
 def _read_key(key_file: Path) -> dict[str, Any]:
     """A slice folder's ``key.json`` (strict JSON, an object), else one line naming it."""
-    from peghole_mjx.validation import load_json_object
-
     return load_json_object(
         key_file,
         lambda why: CorruptFileError(
@@ -95,8 +99,6 @@ def _keyed_dir(root: Path, key: dict[str, Any]) -> Path:
             )
     else:
         root.mkdir(parents=True, exist_ok=True)
-        from peghole_mjx import fileio
-
         fileio.write_text(key_file, json.dumps(key, indent=2) + "\n")
     return root
 
@@ -111,8 +113,6 @@ def slice_problem(path: Path) -> str | None:
     """None if the slice file ``path`` holds exactly the episode records of its episodes (one
     finite-size float array per :data:`EPISODE_RECORD` key, of the length its name says),
     else what is wrong with it (random bytes, pickled data, truncation, other arrays)."""
-    from peghole_mjx.envs.metrics import EPISODE_RECORD
-
     m = SLICE_NAME.fullmatch(path.name)
     n = int(m.group(2)) if m else None
     try:
@@ -159,8 +159,6 @@ def output_bytes(n_policies: int, episodes: int, batch: int | None, parts: bool,
     """A generous estimate of what ``peghole evaluate`` writes: the ``--out`` JSON and, with
     ``--parts``, each policy's and baseline's slices (one float64 per record key per episode,
     plus the npz headers of each slice) and key files."""
-    from peghole_mjx.envs.metrics import EPISODE_RECORD
-
     total = (8192 * n_policies + 4096) if out else 0
     if parts:
         slices = -(-episodes // max(1, min(batch or episodes, episodes)))
@@ -253,9 +251,6 @@ def config_differences(bundle: PolicyBundle, config) -> dict[str, list]:
 def requested_config(bundle: PolicyBundle, env_overrides: dict | None = None):
     """The env config of ``bundle``'s training env with ``env_overrides`` (not built; None:
     the training env's config)."""
-    from peghole_mjx.envs import get_default_config
-    from peghole_mjx.envs.config import apply_overrides
-
     over = {**bundle.env_overrides, **(env_overrides or {})}
     return apply_overrides(get_default_config(bundle.env_name), over)
 
@@ -289,6 +284,8 @@ def evaluate(
 ) -> dict[str, Any]:
     """``{"policy", "baseline", "force_reduction_pct", "episodes", ...}`` (see module doc).
 
+    ``progress``: each phase on stderr (:mod:`peghole_mjx.progress`): building the env, each
+    rollout's compile (first run only; cached after) and its bar of env steps.
     ``policy_only``: skip the baseline (``baseline`` and ``force_reduction_pct`` are None).
     ``baselines``: baseline summaries by episodes key (filled here), so several policies
     evaluated on the same episodes and env run the baseline once.
@@ -309,14 +306,22 @@ def evaluate(
         bundle.check_env(env)
         diff = check_requested_env(bundle, env.config, cross)
     else:  # checked before the env is built
-        diff = check_requested_env(bundle, requested_config(bundle, env_overrides), cross)
-        env = bundle.make_env(env_overrides)
+        config = requested_config(bundle, env_overrides)
+        diff = check_requested_env(bundle, config, cross)
+        with prog.phase(f"building the {bundle.env_name} env ({config.engine})", progress):
+            env = bundle.make_env(env_overrides)
     parts = _parts_dirs(parts_dir, bundle, env, seed, batch or episodes)
     for folder in parts:  # before any simulation: an unusable slice is set aside, run again
         check_slices(folder)
     kw = dict(seed=seed, progress=progress, batch=batch)
     res_p = rollout(
-        env, bundle.policy_fn(), episodes, params=bundle.params, parts_dir=parts[0], **kw
+        env,
+        bundle.policy_fn(),
+        episodes,
+        params=bundle.params,
+        parts_dir=parts[0],
+        label="policy rollout",
+        **kw,
     )
     pol, base = res_p.summary().as_dict(), None
     if not policy_only:
@@ -325,7 +330,14 @@ def evaluate(
         )
         baselines = {} if baselines is None else baselines
         if key not in baselines:
-            res_b = rollout(env, scripted_policy(env), episodes, parts_dir=parts[1], **kw)
+            res_b = rollout(
+                env,
+                scripted_policy(env),
+                episodes,
+                parts_dir=parts[1],
+                label="scripted baseline rollout",
+                **kw,
+            )
             baselines[key] = res_b.summary().as_dict()
         base = baselines[key]
     return {
@@ -337,7 +349,7 @@ def evaluate(
         "seed": seed,
         "env": bundle.env_name,
         "preset": env.config.preset,
-        "engine": env.config.engine,  # the physics engine (docs/engines.md)
+        "engine": env.config.engine,  # the physics engine (docs/research/performance.md)
         "geometry": env.config.geometry or None,  # spec changes from the preset's, if any
         "compliance_strategy": bool(env.config.compliance_strategy),
         # {key: [trained, evaluated]}: empty for an evaluation as trained

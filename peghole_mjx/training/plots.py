@@ -8,13 +8,20 @@ Training-episode statistics are drawn as lines, evaluation points as markers. Se
 
 from __future__ import annotations
 
-import csv
 import json
+import math
 from pathlib import Path
 
+import matplotlib
+import matplotlib.pyplot as plt
 import numpy as np
+from matplotlib.backend_bases import FigureCanvasBase
+from scipy import stats
 
+from peghole_mjx import fileio
 from peghole_mjx.errors import UserInputError
+from peghole_mjx.training.config import env_setting, read_run_record
+from peghole_mjx.training.logs import read_metrics, read_rows
 
 PANELS = (
     ("mean_fz_N", "extraction force |F_z| per episode (N)", "Fig 4.5"),
@@ -24,13 +31,20 @@ PANELS = (
 )
 
 
+def t_interval(values: list[float], level: float = 0.95) -> list[float] | None:
+    """The ``level`` Student-t interval of the mean of ``values`` (None for fewer than 2)."""
+    v = np.asarray([x for x in values if math.isfinite(x)], float)
+    if len(v) < 2:
+        return None
+    half = stats.t.ppf(0.5 + level / 2, len(v) - 1) * v.std(ddof=1) / math.sqrt(len(v))
+    return [float(v.mean() - half), float(v.mean() + half)]
+
+
 def run_label(run: Path) -> str:
     """``RL + CS`` or ``RL`` (compliance strategy on or off), with the env name."""
-    from peghole_mjx.training.config import read_run_record
-
     meta, _ = read_run_record(run, what=str(run), full=False)
     cfg = meta["config"]
-    cs = bool(cfg.get("env_overrides", {}).get("compliance_strategy", False))
+    cs = env_setting(cfg["env"], cfg.get("env_overrides", {}), "compliance_strategy")
     return f"{cfg['env']}: {'RL + CS' if cs else 'RL'}"
 
 
@@ -47,82 +61,9 @@ def _column(rows: list[dict[str, str]], key: str) -> tuple[np.ndarray, np.ndarra
     return np.array(xs), np.array(ys)
 
 
-def read_metrics(run: Path, torn_tail: bool = False) -> list[dict[str, str]]:
-    """The rows of a training run's ``metrics.csv`` (one per evaluation), as strings,
-    schema-checked (:func:`read_rows`)."""
-    path = Path(run) / "metrics.csv"
-    if not path.exists():
-        raise UserInputError(f"{run}: no metrics.csv (not a training run directory)")
-    return read_rows(path, ("step",), torn_tail=torn_tail)
-
-
-def read_rows(
-    path: Path, required: tuple[str, ...], torn_tail: bool = False
-) -> list[dict[str, str]]:
-    """The rows of a CSV log a run appends to (``metrics.csv``, ``history.csv``), checked:
-    UTF-8 text without NUL bytes, a header holding the ``required`` columns (no empty or
-    repeated names), every row with the header's number of fields and a whole-number ``step``
-    >= 0. A problem is a :class:`CorruptFileError` naming the file and the line.
-
-    ``torn_tail``: the last line as a kill or a power cut can leave it (no final newline, or
-    ending in NUL bytes) is dropped instead (``--resume``: that row is after the newest
-    checkpoint, whose work is redone)."""
-    from peghole_mjx.errors import CorruptFileError
-
-    path = Path(path)
-    try:
-        data = path.read_bytes()
-    except OSError as exc:
-        raise UserInputError(f"{path}: cannot read ({exc.strerror or exc})") from None
-    lines = data.split(b"\n")
-    tail = lines.pop()  # after the last newline: b"" when the file ends in one
-    if torn_tail:
-        if lines and b"\0" in lines[-1] and not tail.strip(b"\0"):
-            lines.pop()  # a row whose end a power cut replaced with NUL bytes
-    elif tail:
-        lines.append(tail)  # checked as any other line
-    for i, line in enumerate(lines, 1):
-        if b"\0" in line:
-            raise CorruptFileError(
-                f"{path} line {i}: NUL bytes (a damaged file, e.g. the tail a crash leaves)"
-            )
-    try:
-        text = [line.decode().rstrip("\r") for line in lines]
-    except UnicodeDecodeError as exc:
-        raise CorruptFileError(f"{path}: not UTF-8 text ({exc.reason})") from None
-    if not text or not text[0]:
-        raise CorruptFileError(f"{path} line 1: no header")
-    try:
-        parsed = [(i, f) for i, f in enumerate(csv.reader(text), 1) if f]  # blank lines skipped
-    except csv.Error as exc:
-        raise CorruptFileError(f"{path}: not CSV ({exc})") from None
-    header, body = parsed[0][1], parsed[1:]
-    if any(not h for h in header) or len(set(header)) != len(header):
-        raise CorruptFileError(f"{path} line 1: empty or repeated column names {header!r:.80}")
-    missing = [c for c in required if c not in header]
-    if missing:
-        raise CorruptFileError(f"{path} line 1: the header lacks the columns {missing}")
-    rows = []
-    for i, fields in body:
-        if len(fields) != len(header):
-            raise CorruptFileError(
-                f"{path} line {i}: {len(fields)} fields, the header has {len(header)}"
-            )
-        row = dict(zip(header, fields, strict=True))
-        step = row.get("step")
-        if step is not None and not (step.isascii() and step.isdigit()):
-            raise CorruptFileError(f"{path} line {i}: step must be a whole number, got {step!r}")
-        rows.append(row)
-    return rows
-
-
 def plot_curves(runs: list[Path], out: Path, title: str | None = None) -> Path:
     """One figure with the four panels for every run in ``runs``; returns ``out``."""
-    import matplotlib
-
     matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
     fig, axes = plt.subplots(2, 2, figsize=(11, 7.5), sharex=True)
     for i, run in enumerate(runs):
         run = Path(run)
@@ -158,8 +99,6 @@ def _finish(fig, axes, title: str, out: Path) -> Path:
 def image_format(out: Path) -> str:
     """The image format of ``out`` by its suffix (none: PNG); a suffix matplotlib cannot
     write (``.txt``) is a :class:`UserInputError` naming the ones it can."""
-    from matplotlib.backend_bases import FigureCanvasBase
-
     fmt = Path(out).suffix.lstrip(".").lower() or "png"
     known = FigureCanvasBase.get_supported_filetypes()
     if fmt not in known:
@@ -172,10 +111,6 @@ def image_format(out: Path) -> str:
 
 def _save(fig, out: Path) -> Path:
     """Write the figure atomically (a failed write keeps the old one) and close it."""
-    import matplotlib.pyplot as plt
-
-    from peghole_mjx import fileio
-
     fig.tight_layout()
     out = Path(out)
     out.parent.mkdir(parents=True, exist_ok=True)
@@ -188,13 +123,7 @@ def _save(fig, out: Path) -> Path:
 def plot_seed_bands(runs: list[Path], out: Path, title: str | None = None) -> Path:
     """The four panels for multi-seed runs (``peghole train --seeds N``): the training
     episodes' statistics per chunk, mean over seeds with a 95 % Student-t band; returns ``out``."""
-    import matplotlib
-
     matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    from peghole_mjx.training.seeds import t_interval
-
     fig, axes = plt.subplots(2, 2, figsize=(11, 7.5), sharex=True)
     for i, run in enumerate(runs):
         run = Path(run)
@@ -239,13 +168,7 @@ def plot_final_evals(runs: list[Path], out: Path, title: str | None = None) -> P
     """The final evaluation of each seed of multi-seed runs (``seeds.json``): one dot per seed
     and the mean over seeds with its 95 % Student-t interval, per run; returns ``out``. It shows
     what the training curves cannot where the budget lets few training episodes end."""
-    import matplotlib
-
     matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    from peghole_mjx.training.seeds import t_interval
-
     fig, axes = plt.subplots(1, len(FINAL_PANELS), figsize=(11, 3.8))
     labels = []
     for i, run in enumerate(runs):

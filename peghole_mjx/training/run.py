@@ -1,11 +1,13 @@
-"""A training run on disk: config, progress, metrics, checkpoints, resume, final outputs.
+"""Training runs on disk: the one driver of ``peghole train`` (:class:`Run`) and its single-seed
+run (:class:`TrainingRun`); the multi-seed run (``--seeds N``) is
+:class:`peghole_mjx.training.seeds.SeedsRun`, the same driver with another learner and layout.
 
-Layout of ``--out DIR``::
+Layout of a single-seed ``--out DIR``::
 
     run.json              env, hyperparameters, network, device, versions, start date
     metrics.csv           one row per evaluation (env steps, wall clock, eval and training stats)
     tb/                   TensorBoard event files (same scalars)
-    run.lock              held by the process writing the run (training/lock.py)
+    run.lock              held by the process writing the run (peghole_mjx/lock.py)
     checkpoints/step_N/   policy.json + params.npz at every evaluation; the two newest also
                           hold state/ (orbax, by tree path) + state.json (the whole carry,
                           for --resume);
@@ -15,22 +17,35 @@ Layout of ``--out DIR``::
     rollout.gif           one episode of the final policy (mujoco.Renderer, headless)
     summary.json          final evaluation, wall clock, time to 95 % success
 
+What every run shares is :class:`Run`'s: the start (a folder that holds a run is refused, one
+that a failed start left is taken over), the resume, the calls of the learner with a checkpoint
+and log rows at each boundary, and one writer each of the checkpoints
+(:func:`peghole_mjx.training.checkpoints.save` / ``load``), the CSV log
+(:class:`peghole_mjx.training.logs.CsvLog`) and ``run.json``
+(:func:`peghole_mjx.training.config.write_run_record`). The two runs differ in their learner
+(single seed: :class:`~peghole_mjx.training.sac.SACTrainer`, ``pmap``-ed over every device and
+process, with evaluations during training; several seeds:
+:func:`~peghole_mjx.training.functional.make_train` ``vmap``-ed over the seeds' keys) and in
+their layout (``metrics.csv`` and one policy per checkpoint, or ``history.csv`` and ``seed_K/``).
+Decided 2026-12-02: the single-seed run is not the one-seed case of the multi-seed run, as that
+would change its layout (``metrics.csv`` with evaluation rows, ``checkpoints/step_N/policy.json``,
+which ``peghole evaluate`` and the published runs rely on) and drop ``--distributed``.
+
 Resume (``--resume DIR``) restores the newest checkpoint whose state verifies (a corrupt
 newer one is set aside with a warning): actor, critics, target critics, temperature, optimiser
 states, normaliser, replay buffer, every world's state, the PRNG key, the env-step counter, the
-wall clock so far and the evaluation schedule. Rows of ``metrics.csv`` written after that
-checkpoint are dropped (their work is redone; none are kept when no checkpoint was written).
-Nothing of the run is rewritten before the new configuration and the checkpoint have been
-validated and loaded; every file is written atomically (``peghole_mjx.fileio``).
+wall clock so far and the evaluation schedule. Rows of the log written after that checkpoint
+are dropped (their work is redone; none are kept when no checkpoint was written, and the
+earlier history is then moved into ``history_N/``). Nothing of the run is rewritten before the
+new configuration and the checkpoint have been validated and loaded; every file is written
+atomically (``peghole_mjx.fileio``).
 """
 
 from __future__ import annotations
 
-import csv
 import itertools
-import json
-import math
 import os
+import shutil
 import sys
 import time
 from pathlib import Path
@@ -38,18 +53,22 @@ from typing import Any
 
 import jax
 import numpy as np
+from tqdm import tqdm
 
-from peghole_mjx import fileio, memory
+from peghole_mjx import envs, fileio, memory
+from peghole_mjx.envs import rollout as rollouts
 from peghole_mjx.envs.metrics import EVAL_STATS, TOTAL_KEYS, TRAIN_STATS, summarize_totals
-from peghole_mjx.errors import CorruptFileError, UserInputError
+from peghole_mjx.errors import UserInputError
+from peghole_mjx.lock import RunLock
 from peghole_mjx.policies import make_policy_fn, save_policy
 from peghole_mjx.provenance import provenance
 from peghole_mjx.training import checkpoints
-from peghole_mjx.training.config import TrainConfig, read_run_record
-from peghole_mjx.training.lock import RunLock
-from peghole_mjx.training.plots import read_metrics
+from peghole_mjx.training.config import RUN_RECORD, TrainConfig, read_run_record, write_run_record
+from peghole_mjx.training.logs import CsvLog
+from peghole_mjx.training.plots import plot_curves
 from peghole_mjx.training.sac import SACTrainer
-from peghole_mjx.validation import dumps
+from peghole_mjx.training.video import render_policy_gif
+from peghole_mjx.validation import check, dumps
 
 METRIC_COLUMNS = (
     "step",
@@ -65,10 +84,217 @@ METRIC_COLUMNS = (
 )
 #: eval success that defines "time to success" (issue targets: 95 %)
 SUCCESS_THRESHOLD = 0.95
+#: evaluation seeds: ``cfg.seed + EVAL_SEED_OFFSET + k`` for the k-th evaluation of a run
+EVAL_SEED_OFFSET = 10_000
 
 
-class TrainingRun:
-    """Drive a :class:`SACTrainer` with evaluation, logging and checkpoints."""
+class Run:
+    """The driver every training run shares (see the module): ``run()`` starts or resumes it,
+    then calls the learner until its last env step, writing the log rows and a checkpoint at
+    each boundary. A subclass gives the learner, the layout and the outputs (the hooks below)."""
+
+    #: the run's CSV log in its folder, its columns and the columns each row must have
+    LOG_NAME = "metrics.csv"
+    LOG_COLUMNS: tuple[str, ...] = METRIC_COLUMNS
+    LOG_KEYS: tuple[str, ...] = ("step",)
+    #: the keys of ``state.json`` a checkpoint of this run must hold (its schedule)
+    SCHEDULE_KEYS: tuple[str, ...] = ()
+    #: the run's lock when the caller took it (else :meth:`run` takes it)
+    lock: RunLock | None = None
+    #: run.json as it will be once the resumed config and checkpoint are validated
+    _pending_meta: dict[str, Any] | None = None
+    progress = True
+    #: the final carry, for callers that continue in-process
+    carry: Any = None
+    cfg: TrainConfig
+    out: Path
+    ckpt_dir: Path
+
+    @classmethod
+    def log_at(cls, out: str | Path) -> CsvLog:
+        """The CSV log (``metrics.csv`` or ``history.csv``) of this kind of run in ``out``."""
+        return CsvLog(Path(out) / cls.LOG_NAME, cls.LOG_COLUMNS, cls.LOG_KEYS)
+
+    @property
+    def log(self) -> CsvLog:
+        """The run's CSV log."""
+        return self.log_at(self.out)
+
+    def checkpoint_files(self) -> tuple[str, ...]:
+        """What a checkpoint of this run holds, verified before a resume."""
+        return (*checkpoints.POLICY_FILES, *checkpoints.STATE_FILES)
+
+    # ------------------------------------------------------------------ hooks
+    def _template(self) -> Any:
+        """A carry of this run's structure, shapes and dtypes (what a checkpoint restores)."""
+        raise NotImplementedError
+
+    def _on_device(self, template: Any, host: Any) -> Any:
+        """The restored host arrays ``host`` placed as the learner wants them."""
+        raise NotImplementedError
+
+    def _write_policies(self, folder: Path, host: Any, step: int) -> None:
+        """Write the policy files of a checkpoint into ``folder`` (a temporary folder)."""
+        raise NotImplementedError
+
+    def _record(self) -> dict[str, Any]:
+        """``run.json`` of a new run."""
+        raise NotImplementedError
+
+    def _schedule(self) -> dict[str, Any]:
+        """What a checkpoint records besides the env step (the evaluation schedule)."""
+        return {}
+
+    def _init_carry(self) -> Any:
+        raise NotImplementedError
+
+    def _start(self, carry: Any, step: int, sched: dict[str, Any] | None, tb) -> tuple[Any, int]:
+        """Before the first call: the clocks and schedule (``sched``: a checkpoint's, None for
+        a new run) and whatever a run does first; returns ``(carry, step)``."""
+        return carry, step
+
+    @property
+    def total_steps(self) -> int:
+        raise NotImplementedError
+
+    @property
+    def steps_per_call(self) -> int:
+        raise NotImplementedError
+
+    def _desc(self) -> str:
+        return f"SAC {self.cfg.env}"
+
+    def _advance(self, carry: Any, step: int, bar) -> Any:
+        """One call of the learner from env step ``step``."""
+        raise NotImplementedError
+
+    def _at_boundary(self, step: int) -> bool:
+        """A checkpoint (and log rows) is due after the call that reached ``step``."""
+        raise NotImplementedError
+
+    def _boundary_rows(self, carry: Any, step: int, bar) -> tuple[list[dict], str | None]:
+        """The log rows of a boundary and, to end the run there, the reason (printed)."""
+        raise NotImplementedError
+
+    def _finish(self, carry: Any, step: int) -> dict[str, Any]:
+        raise NotImplementedError
+
+    def _open_tensorboard(self):
+        return None
+
+    # ------------------------------------------------------------------ state I/O
+    def save_checkpoint(self, carry: Any, step: int, sched: dict[str, Any]) -> Path:
+        """Write ``checkpoints/step_N`` completely (:func:`checkpoints.save`: fsynced, sealed,
+        renamed): the run's policies, its state and ``sched``; the two newest checkpoints keep
+        their state."""
+        host = jax.device_get(carry)
+        return checkpoints.save(
+            self.ckpt_dir, step, host, sched, lambda f: self._write_policies(f, host, step)
+        )
+
+    def _save(self, carry: Any, step: int) -> Path:
+        """The checkpoint of a boundary (:meth:`save_checkpoint` with the run's schedule)."""
+        return self.save_checkpoint(carry, step, self._schedule())
+
+    def load_checkpoint(self, path: Path) -> tuple[Any, dict[str, Any]]:
+        """``(carry, sched)`` of checkpoint ``path``, restored by tree path into this run's
+        carry (a carry of another structure is refused: ``checkpoints.restore_state``)."""
+        template = self._template()
+        host, sched = checkpoints.load(path, template, self.SCHEDULE_KEYS)
+        return self._on_device(template, host), sched
+
+    # ------------------------------------------------------------------ start and resume
+    def _prepare(self, resume: bool) -> tuple[tuple[Path, Any] | None, list[dict[str, str]]]:
+        """``(found, rows)``: the checkpoint to resume from (``(path, (carry, sched))``, None:
+        from the start) and the log rows up to it. A new run refuses a folder that holds a run
+        (but for a failed start, replaced); a resume verifies each checkpoint by this run's
+        layout (:meth:`checkpoint_files`), falls back past corrupt ones and, finding none, sets
+        the history aside (``history_N/``) before starting over. Only then are the run's records
+        rewritten: run.json (with a validated change) and the log, cut to the checkpoint's
+        step (the header alone when starting over)."""
+        self.out.mkdir(parents=True, exist_ok=True)
+        if not resume and (self.out / RUN_RECORD).exists():
+            if not failed_start(self.out):
+                raise UserInputError(
+                    f"{self.out} already holds a training run: use --resume {self.out} or a "
+                    "new --out"
+                )
+            clear_failed_start(self.out)
+        # the log read once, schema-checked before any work (file and line)
+        logged = self.log.read() if resume else []
+        found = None
+        if resume:
+            found = checkpoints.newest_valid(
+                self.ckpt_dir, self.load_checkpoint, self.checkpoint_files()
+            )
+            if found is None:
+                starting_over(self.out, self.ckpt_dir)
+        # validated: from here on the run's records are rewritten
+        if self._pending_meta is not None:
+            write_run_record(self.out, self._pending_meta)
+            self._pending_meta = None
+        if not (self.out / RUN_RECORD).exists():
+            write_run_record(self.out, self._record())
+        rows = [r for r in logged if int(r["step"]) <= found[1][1]["step"]] if found else []
+        self.log.rewrite(rows)
+        return found, rows
+
+    # ------------------------------------------------------------------ main loop
+    def run(self, resume: bool = False) -> dict[str, Any]:
+        """Train (``resume``: from the newest valid checkpoint) holding the run's lock."""
+        lock = self.lock
+        if lock is None or not lock.held:
+            lock = RunLock(self.out).acquire()
+        try:
+            return self._drive(resume)
+        finally:
+            if lock is not self.lock:
+                lock.release()
+
+    def _drive(self, resume: bool) -> dict[str, Any]:
+        found, _ = self._prepare(resume)
+        tb = self._open_tensorboard()
+        if found is not None:
+            path, (carry, sched) = found
+            step = sched["step"]
+            print(f"resumed from {path} at {step} env steps", file=sys.stderr)
+        else:
+            carry, step, sched = self._init_carry(), 0, None
+        carry, step = self._start(carry, step, sched, tb)
+        total, per_call = self.total_steps, self.steps_per_call
+        bar = tqdm(
+            total=total,
+            initial=min(step, total),
+            unit="step",
+            unit_scale=True,
+            desc=self._desc(),
+            file=sys.stderr,
+            disable=not self.progress,
+            dynamic_ncols=True,
+        )
+        while step < total:
+            carry = self._advance(carry, step, bar)
+            step += per_call
+            bar.update(per_call)
+            if self._at_boundary(step):
+                rows, stop = self._boundary_rows(carry, step, bar)
+                self.log.append(rows, tb)
+                self._save(carry, step)
+                if stop:
+                    print(f"{stop}: stopping at {step} env steps", file=sys.stderr)
+                    break
+        bar.close()
+        if tb is not None:
+            tb.close()
+        self.carry = carry
+        return self._finish(carry, step)
+
+
+class TrainingRun(Run):
+    """One seed: a :class:`SACTrainer` with evaluations, ``metrics.csv``, TensorBoard logs and
+    a checkpoint at every evaluation (the module's layout)."""
+
+    SCHEDULE_KEYS = ("wall_s", "n_eval")
 
     def __init__(
         self,
@@ -79,26 +305,19 @@ class TrainingRun:
         stop_at_success: float | None = None,
         budget_train_s: float | None = None,
     ):
-        from peghole_mjx.envs import load
-
         self.cfg, self.out, self.progress, self.render = cfg, Path(out), progress, render
         #: end the run at the first evaluation whose success rate reaches this (benchmarks)
         self.stop_at_success = stop_at_success
         #: end the run, after a last evaluation, once the training clock (evaluations
         #: excluded) reaches this many seconds (benchmarks with a wall-clock budget)
         self.budget_train_s = budget_train_s
-        self.carry = None
-        self.env = load(cfg.env, config_overrides=cfg.env_overrides or None)
+        self.env = envs.load(cfg.env, config_overrides=cfg.env_overrides or None)
         self.trainer = SACTrainer(self.env, cfg)
         # before anything is allocated, compiled or written
         need_disk = check_resources(self.env, cfg, self.trainer.obs_size, self.trainer.act_size)
         fileio.check_room(self.out, need_disk, "--out")
         self.policy_fn = make_policy_fn(self.trainer.network, deterministic=True)
         self.ckpt_dir = self.out / "checkpoints"
-        #: the run's lock when the caller took it (else :meth:`run` takes it)
-        self.lock: RunLock | None = None
-        #: run.json as it will be once the resumed config and checkpoint are validated
-        self._pending_meta: dict[str, Any] | None = None
 
     # ------------------------------------------------------------------ construction
     @classmethod
@@ -114,12 +333,9 @@ class TrainingRun:
         Nothing is written here: the changed ``run.json`` is written by :meth:`run` once the
         new configuration and the checkpoint have been validated.
         """
-        from peghole_mjx.validation import check
-
         out = Path(out)
         meta, _ = read_run_record(out)  # schema-checked, its config validated
-        if (out / "metrics.csv").exists():  # checked before the env is built
-            read_metrics(out, torn_tail=True)
+        cls.log_at(out).read()  # checked before the env is built
         config = dict(meta["config"])
         if num_timesteps is not None:
             n = check("num_timesteps", num_timesteps, "--set num_timesteps")
@@ -131,61 +347,38 @@ class TrainingRun:
             run._pending_meta = meta
         return run
 
-    def latest_checkpoint(self) -> Path | None:
-        """Newest checkpoint folder holding a saved state (not checked; see
-        :meth:`find_resume_point`)."""
-        full = [p for p in checkpoints.checkpoint_dirs(self.ckpt_dir) if checkpoints.has_state(p)]
-        return full[-1] if full else None
-
-    def find_resume_point(self):
-        """``(path, carry, sched)`` of the newest checkpoint whose state verifies and loads,
-        or None; corrupt newer ones are set aside with a warning (``checkpoints.newest_valid``)."""
-        found = checkpoints.newest_valid(self.ckpt_dir, self.load_checkpoint)
+    def prepare(self, resume: bool):
+        """``(path, carry, sched)`` of the checkpoint to resume from, or None (from the start),
+        once the run folder is checked and its records rewritten (:meth:`Run._prepare`)."""
+        found, _ = self._prepare(resume)
         if found is None:
             return None
         path, (carry, sched) = found
         return path, carry, sched
 
     # ------------------------------------------------------------------ state I/O
-    def save_checkpoint(self, carry, step: int, sched: dict[str, Any]) -> Path:
-        """Write ``checkpoints/step_N`` completely (``checkpoints.write``: fsynced, sealed,
-        renamed); the two newest checkpoints keep their state."""
-        params = self.trainer.policy_params(carry)
-        host = jax.device_get(carry)
+    def _template(self):
+        return self.trainer.init_carry(self.cfg.seed)
 
-        def write_files(folder: Path) -> None:
-            save_policy(folder, params, self._policy_meta(step), atomic=False)
-            saved = checkpoints.save_state(folder, host)
-            text = dumps({"step": step, **sched, **saved}, indent=2) + "\n"
-            fileio.write_text(folder / "state.json", text)
-
-        return checkpoints.write(self.ckpt_dir, step, write_files)
-
-    def load_checkpoint(self, path: Path):
-        """``(carry, sched)`` of checkpoint ``path``, restored by tree path into this run's
-        carry (a carry of another structure is refused: ``checkpoints.restore_state``)."""
-        template = self.trainer.init_carry(self.cfg.seed)
-        sched = json.loads((path / "state.json").read_text())
-        if not isinstance(sched, dict) or not isinstance(sched.get("step"), int):
-            raise CorruptFileError(f"{path}/state.json holds no step")
-        if not {"wall_s", "n_eval"} <= set(sched):
-            raise CorruptFileError(f"{path}/state.json lacks the evaluation schedule")
-        empty = sched.pop("empty_leaves", {})
-        host = checkpoints.restore_state(path, template, empty)
-        carry = jax.tree.map(
+    def _on_device(self, template, host):
+        return jax.tree.map(
             lambda t, x: jax.device_put(x.astype(t.dtype), t.sharding), template, host
         )
-        return carry, sched
+
+    def _write_policies(self, folder: Path, host, step: int) -> None:
+        params = self.trainer.policy_params(host)
+        save_policy(folder, params, self._policy_meta(step), atomic=False)
+
+    def _record(self) -> dict[str, Any]:
+        return {"config": self.cfg.as_dict(), "network": self.trainer.network, **provenance()}
 
     def _policy_meta(self, step: int) -> dict[str, Any]:
         return policy_meta(self.cfg, self.trainer.network, step)
 
     # ------------------------------------------------------------------ evaluation
     def evaluate(self, carry, episodes: int, seed: int) -> dict[str, float]:
-        from peghole_mjx.envs.rollout import rollout
-
         params = self.trainer.policy_params(carry)
-        res = rollout(
+        res = rollouts.rollout(
             self.env,
             self.policy_fn,
             episodes,
@@ -197,195 +390,115 @@ class TrainingRun:
         )
         return res.summary().as_dict()
 
-    # ------------------------------------------------------------------ logging
     def _read_rows(self, upto_step: int | None = None) -> list[dict[str, str]]:
-        if not (self.out / "metrics.csv").exists():
-            return []
-        # schema-checked; a row cut short by a kill during its write is dropped
-        rows = read_metrics(self.out, torn_tail=True)
-        if upto_step is not None:
-            rows = [r for r in rows if int(r["step"]) <= upto_step]
-        return rows
+        """The rows of ``metrics.csv`` (up to ``upto_step``), schema-checked; a row cut short
+        by a kill during its write is dropped."""
+        return self.log.read(upto_step)
 
-    def _write_rows(self, rows: list[dict[str, Any]]) -> None:
-        """Replace metrics.csv atomically with ``rows``."""
-        with fileio.atomic_open(self.out / "metrics.csv", "w") as f:
-            w = csv.DictWriter(f, fieldnames=METRIC_COLUMNS)
-            w.writeheader()
-            for r in rows:
-                w.writerow({k: r.get(k, "") for k in METRIC_COLUMNS})
+    # ------------------------------------------------------------------ the driver's hooks
+    @property
+    def total_steps(self) -> int:
+        return self.cfg.num_timesteps
 
-    def _append_row(self, row: dict[str, Any], tb) -> None:
-        path = self.out / "metrics.csv"
-        new = not path.exists()
-        with path.open("a", newline="") as f:
-            w = csv.DictWriter(f, fieldnames=METRIC_COLUMNS)
-            if new:
-                w.writeheader()
-            w.writerow({k: _fmt(row.get(k, "")) for k in METRIC_COLUMNS})
-            f.flush()
-            os.fsync(f.fileno())
-        if tb is not None:
-            for k, v in row.items():
-                if k != "step" and isinstance(v, int | float) and math.isfinite(v):
-                    tb.add_scalar(k, v, row["step"])
-            tb.flush()
+    @property
+    def steps_per_call(self) -> int:
+        return self.cfg.num_envs * self.cfg.steps_per_call
 
-    # ------------------------------------------------------------------ main loop
-    def run(self, resume: bool = False) -> dict[str, Any]:
-        """Train (``resume``: from the newest valid checkpoint) holding the run's lock."""
-        lock = self.lock
-        if lock is None or not lock.held:
-            lock = RunLock(self.out).acquire()
-        try:
-            return self._run(resume)
-        finally:
-            if lock is not self.lock:
-                lock.release()
+    def _init_carry(self):
+        return self.trainer.init_carry(self.cfg.seed)
 
-    def prepare(self, resume: bool):
-        """Check the run folder, find the checkpoint to resume from (None: from the start),
-        and only then rewrite the run's records: run.json (with a validated change) and
-        metrics.csv, truncated to the checkpoint's step (emptied when starting over)."""
-        self.out.mkdir(parents=True, exist_ok=True)
-        if not resume and (self.out / "run.json").exists():
-            if not failed_start(self.out):
-                raise UserInputError(
-                    f"{self.out} already holds a training run: use --resume {self.out} or a "
-                    "new --out"
-                )
-            clear_failed_start(self.out)
-        # metrics.csv read once, schema-checked before any work (file and line)
-        logged = self._read_rows() if resume else []
-        found = self.find_resume_point() if resume else None
-        rows = [r for r in logged if int(r["step"]) <= found[2]["step"]] if found else []
-        if resume and found is None:
-            starting_over(self.out, self.ckpt_dir)
-        # validated: from here on the run's records are rewritten
-        if self._pending_meta is not None:
-            fileio.write_text(self.out / "run.json", dumps(self._pending_meta, indent=2) + "\n")
-            self._pending_meta = None
-        if not (self.out / "run.json").exists():
-            meta = {"config": self.cfg.as_dict(), "network": self.trainer.network, **provenance()}
-            fileio.write_text(self.out / "run.json", dumps(meta, indent=2) + "\n")
-        if resume:  # rows after the checkpoint (all rows when starting over) are redone
-            self._write_rows(rows)
-        return found
+    def _wall(self) -> float:
+        return self._wall0 + time.perf_counter() - self._t_start
 
-    def _run(self, resume: bool) -> dict[str, Any]:
-        cfg, trainer = self.cfg, self.trainer
-        found = self.prepare(resume)
-        tb = _tensorboard(self.out / "tb")
-        t_start = time.perf_counter()
-        if found is not None:
-            ckpt, carry, sched = found
-            step, wall0, n_eval = sched["step"], sched["wall_s"], sched["n_eval"]
-            eval_s = sched.get("eval_s", 0.0)
-            print(f"resumed from {ckpt} at {step} env steps", file=sys.stderr)
-        else:
-            carry = trainer.init_carry(cfg.seed)
-            step, wall0, n_eval = 0, 0.0, 0
-            eval_s = 0.0  # wall clock spent in evaluations (excluded from train_wall_s)
+    def _clocks(self) -> dict[str, float]:
+        return {"wall_s": self._wall(), "train_wall_s": self._wall() - self._eval_s}
 
-        def wall() -> float:
-            return wall0 + time.perf_counter() - t_start
+    def _timed_eval(self, carry, seed: int) -> dict[str, float]:
+        t0 = time.perf_counter()
+        ev = self.evaluate(carry, self.cfg.num_eval_envs, seed=seed)
+        self._eval_s += time.perf_counter() - t0
+        return ev
 
-        def timed_eval(seed: int) -> dict[str, float]:
-            nonlocal eval_s
-            t0 = time.perf_counter()
-            ev = self.evaluate(carry, cfg.num_eval_envs, seed=seed)
-            eval_s += time.perf_counter() - t0
-            return ev
+    def _schedule(self) -> dict[str, Any]:
+        return {"wall_s": self._wall(), "eval_s": self._eval_s, "n_eval": self._n_eval}
 
-        def clocks() -> dict[str, float]:
-            return {"wall_s": wall(), "train_wall_s": wall() - eval_s}
+    def _open_tensorboard(self):
+        return _tensorboard(self.out / "tb")
 
-        per_call = cfg.num_envs * cfg.steps_per_call
-        totals = {k: 0.0 for k in TOTAL_KEYS}
-        losses: dict[str, float] = {}
+    def _start(self, carry, step, sched, tb):
+        """The clocks and evaluation schedule (a checkpoint's, or zero); a new run evaluates
+        the untrained policy, then fills the replay buffer (prefill calls)."""
+        cfg = self.cfg
+        self._t_start = time.perf_counter()
+        sched = sched or {}
+        self._wall0 = sched.get("wall_s", 0.0)
+        self._n_eval = sched.get("n_eval", 0)
+        self._eval_s = sched.get("eval_s", 0.0)  # evaluations' wall clock (not train_wall_s)
+        self._totals = {k: 0.0 for k in TOTAL_KEYS}
+        self._losses: dict[str, float] = {}
         if step == 0:  # the untrained policy, then the replay prefill
-            ev = timed_eval(cfg.seed + 10_000)
-            self._append_row({"step": 0, **clocks(), **_prefix("eval/", ev)}, tb)
-            n_eval = 1
+            ev = self._timed_eval(carry, cfg.seed + EVAL_SEED_OFFSET)
+            self.log.append([{"step": 0, **self._clocks(), **_prefix("eval/", ev)}], tb)
+            self._n_eval = 1
             while step < cfg.min_replay_size:
-                carry, tot = trainer.prefill(carry)
-                step += per_call
-                _accumulate(totals, tot)
-        from tqdm import tqdm
-
-        bar = tqdm(
-            total=cfg.num_timesteps,
-            initial=min(step, cfg.num_timesteps),
-            unit="step",
-            unit_scale=True,
-            desc=f"SAC {cfg.env}",
-            file=sys.stderr,
-            disable=not self.progress,
-            dynamic_ncols=True,
-        )
+                carry, tot = self.trainer.prefill(carry)
+                step += self.steps_per_call
+                _accumulate(self._totals, tot)
         last = self._read_rows()
-        post = {}
+        self._post = {}
         if last:
-            post = {
+            self._post = {
                 "success": last[-1]["eval/success_rate"],
                 "return": last[-1]["eval/mean_return"],
             }
-        t_sps, s_sps = time.perf_counter(), step
-        while step < cfg.num_timesteps:
-            carry, tot, m = trainer.train_call(carry)
-            step += per_call
-            _accumulate(totals, tot)
-            losses = {k: float(np.mean(v)) for k, v in jax.device_get(m).items()}
-            bar.update(per_call)
-            sps = (step - s_sps) / max(time.perf_counter() - t_sps, 1e-9)
-            bar.set_postfix(sps=f"{sps:.0f}", **post, refresh=False)
-            over_budget = (
-                self.budget_train_s is not None and clocks()["train_wall_s"] >= self.budget_train_s
-            )
-            if step >= n_eval * cfg.eval_every or step >= cfg.num_timesteps or over_budget:
-                ev = timed_eval(cfg.seed + 10_000 + n_eval)
-                n_eval = max(n_eval + 1, step // cfg.eval_every + 1)
-                row = {
-                    "step": step,
-                    **clocks(),
-                    "sps": sps,
-                    **_prefix("eval/", ev),
-                    **_train_stats(totals),
-                    **losses,
-                }
-                self._append_row(row, tb)
-                self.save_checkpoint(
-                    carry, step, {"wall_s": wall(), "eval_s": eval_s, "n_eval": n_eval}
-                )
-                post = {
-                    "success": f"{ev['success_rate']:.2f}",
-                    "return": f"{ev['mean_return']:.1f}",
-                }
-                bar.set_postfix(sps=f"{sps:.0f}", **post)
-                totals = {k: 0.0 for k in TOTAL_KEYS}
-                t_sps, s_sps = time.perf_counter(), step
-                if self.stop_at_success is not None and ev["success_rate"] >= self.stop_at_success:
-                    print(
-                        f"eval success {ev['success_rate']:.2f} >= {self.stop_at_success}: "
-                        f"stopping at {step} env steps",
-                        file=sys.stderr,
-                    )
-                    break
-                if over_budget:
-                    print(
-                        f"training clock reached the {self.budget_train_s:g} s budget: "
-                        f"stopping at {step} env steps",
-                        file=sys.stderr,
-                    )
-                    break
-        bar.close()
-        if tb is not None:
-            tb.close()
-        self.carry = carry  # the final carry, for callers that continue in-process
-        return self.finish(carry, step, wall())
+        self._t_sps, self._s_sps, self._sps = time.perf_counter(), step, 0.0
+        return carry, step
+
+    def _advance(self, carry, step: int, bar):
+        carry, tot, m = self.trainer.train_call(carry)
+        _accumulate(self._totals, tot)
+        self._losses = {k: float(np.mean(v)) for k, v in jax.device_get(m).items()}
+        done = step + self.steps_per_call - self._s_sps
+        self._sps = done / max(time.perf_counter() - self._t_sps, 1e-9)
+        bar.set_postfix(sps=f"{self._sps:.0f}", **self._post, refresh=False)
+        return carry
+
+    def _at_boundary(self, step: int) -> bool:
+        """An evaluation is due (by the schedule, at the end, or past the training budget)."""
+        cfg, budget = self.cfg, self.budget_train_s
+        self._over_budget = budget is not None and self._clocks()["train_wall_s"] >= budget
+        due = step >= self._n_eval * cfg.eval_every or step >= cfg.num_timesteps
+        return due or self._over_budget
+
+    def _boundary_rows(self, carry, step: int, bar):
+        cfg = self.cfg
+        ev = self._timed_eval(carry, cfg.seed + EVAL_SEED_OFFSET + self._n_eval)
+        self._n_eval = max(self._n_eval + 1, step // cfg.eval_every + 1)
+        row = {
+            "step": step,
+            **self._clocks(),
+            "sps": self._sps,
+            **_prefix("eval/", ev),
+            **_train_stats(self._totals),
+            **self._losses,
+        }
+        self._post = {"success": f"{ev['success_rate']:.2f}", "return": f"{ev['mean_return']:.1f}"}
+        bar.set_postfix(sps=f"{self._sps:.0f}", **self._post)
+        self._totals = {k: 0.0 for k in TOTAL_KEYS}
+        self._t_sps, self._s_sps = time.perf_counter(), step
+        stop = None
+        if self.stop_at_success is not None and ev["success_rate"] >= self.stop_at_success:
+            stop = f"eval success {ev['success_rate']:.2f} >= {self.stop_at_success}"
+        elif self._over_budget:
+            stop = f"training clock reached the {self.budget_train_s:g} s budget"
+        return [row], stop
+
+    def _finish(self, carry, step: int) -> dict[str, Any]:
+        return self.finish(carry, step, self._wall())
 
     # ------------------------------------------------------------------ outputs
     def finish(self, carry, step: int, wall_s: float) -> dict[str, Any]:
+        """The final policy, ``summary.json``, the learning curves and the rollout GIF."""
         save_policy(
             self.out / "final_policy", self.trainer.policy_params(carry), self._policy_meta(step)
         )  # both files or neither (a temporary folder renamed)
@@ -414,15 +527,11 @@ class TrainingRun:
         # strict JSON: a statistic without a value (no successful episode) is null, not NaN
         fileio.write_text(self.out / "summary.json", dumps(summary, indent=2) + "\n")
         try:
-            from peghole_mjx.training.plots import plot_curves
-
             plot_curves([self.out], self.out / "curves.png")
         except Exception as exc:  # a plot must never lose a finished run
             print(f"warning: learning curves not plotted: {exc}", file=sys.stderr)
         if self.render:
             try:
-                from peghole_mjx.training.video import render_policy_gif
-
                 render_policy_gif(self.out / "final_policy", self.out / "rollout.gif")
             except Exception as exc:
                 print(f"warning: rollout GIF not rendered: {exc}", file=sys.stderr)
@@ -514,8 +623,6 @@ def failed_start(out: Path) -> bool:
 
 def clear_failed_start(out: Path) -> None:
     """Remove what a failed start left in ``out`` (:func:`failed_start`), with a warning."""
-    import shutil
-
     print(
         f"warning: {out} holds a run that stopped before its first evaluation (no metrics, "
         "no checkpoint): the new run replaces it",
@@ -536,8 +643,6 @@ def set_history_aside(out: Path) -> Path | None:
     copy of run.json, so that a run starting over never truncates or overwrites them; the
     folder, or None when there was nothing to keep. Each move is a rename: a kill midway
     leaves every file in one of the two places."""
-    import shutil
-
     items = [out / n for n in RUN_OUTPUTS if (out / n).exists()]
     items += sorted(p for p in out.glob("seed_*") if p.is_dir())
     if not items:
@@ -581,6 +686,8 @@ def policy_meta(cfg: TrainConfig, network: dict[str, Any], step: int) -> dict[st
 
 def _tensorboard(path: Path):
     try:
+        # function-local: tensorboardX imports torch and boto3 (3.7 s on the 2-core CPU,
+        # 2026-12-02), and metrics.csv holds the same numbers when it is missing
         from tensorboardX import SummaryWriter
     except ImportError:  # optional: metrics.csv has the same numbers
         print("tensorboardX not installed: TensorBoard logs skipped", file=sys.stderr)
@@ -601,12 +708,6 @@ def _train_stats(t: dict[str, float]) -> dict[str, float]:
 def _prefix(p: str, d: dict[str, Any], keys=EVAL_STATS) -> dict[str, Any]:
     """The logged statistics of ``d``, prefixed (``eval/...``)."""
     return {p + k: d[k] for k in keys if k in d}
-
-
-def _fmt(v):
-    if isinstance(v, float):
-        return f"{v:.6g}"
-    return v
 
 
 def _f(v) -> float:

@@ -43,6 +43,7 @@ from brax.training import gradients, replay_buffers
 from brax.training.acme import running_statistics, specs
 from brax.training.agents.sac import losses as sac_losses
 from brax.training.types import Transition
+from jax._src import distributed  # private (jax 0.10.2): the coordination client's barrier
 
 from peghole_mjx.envs.extraction import PegHoleEnv
 from peghole_mjx.envs.metrics import accumulate_return, episode_totals, zero_returns
@@ -164,8 +165,6 @@ class SACTrainer:
         ahead (into the compilation cache its call then uses) and the processes meet at a
         barrier of the coordination service before its first run."""
         if jax.process_count() > 1 and name not in self._compiled:
-            from jax._src import distributed
-
             fn.lower(*args).compile()  # fills the compilation cache that fn(*args) then uses
             barrier = f"peghole_{name}_{next(_BARRIERS)}"  # the same sequence in every process
             distributed.global_state.client.wait_at_barrier(barrier, 3_600_000)

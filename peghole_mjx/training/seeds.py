@@ -1,14 +1,16 @@
 """Several seeds of one SAC config trained in one compiled call: ``peghole train --seeds N``.
 
-The thin driver around :func:`peghole_mjx.training.functional.make_train`:
-``jax.vmap`` over the seeds' keys (seed ``cfg.seed + k``), run in chunks of ``eval_every``
-env steps with a checkpoint after each chunk. Layout of ``--out DIR``::
+The training driver (:class:`peghole_mjx.training.run.Run`: start, resume, checkpoints, the
+log, ``run.json``) around :func:`peghole_mjx.training.functional.make_train`: ``jax.vmap`` over
+the seeds' keys (seed ``cfg.seed + k``), run in chunks of ``eval_every`` env steps with a
+checkpoint after each chunk. Layout of ``--out DIR``::
 
     run.json            config, seeds, network, device, versions, start date
     history.csv         one row per seed and chunk: env steps and the finished training
                         episodes' statistics (success, F_z, |F_xy|, return, ...) and losses
-    checkpoints/step_N/ the stacked carry of all seeds (orbax, by tree path; atomic write,
-                        SHA-256 manifest, fallback to the previous one: training/checkpoints.py)
+    checkpoints/step_N/ every seed's policy (seed_K/) and the stacked carry of all seeds
+                        (orbax, by tree path; atomic write, SHA-256 manifest, fallback to the
+                        previous one: training/checkpoints.py)
     seed_K/final_policy/ seed K's final policy (``peghole evaluate DIR/seed_K/final_policy``)
     seeds.json          each seed's final evaluation (``num_eval_envs`` episodes, the same
                         episodes for every seed) and the mean over seeds with a 95 %
@@ -23,9 +25,7 @@ bit-identical whatever the other seeds of the call (tested).
 
 from __future__ import annotations
 
-import csv
 import dataclasses
-import json
 import math
 import sys
 from pathlib import Path
@@ -35,47 +35,39 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from peghole_mjx import fileio
+from peghole_mjx import envs, fileio, policies
+from peghole_mjx.envs import rollout as rollouts
 from peghole_mjx.envs.metrics import EVAL_STATS, TOTAL_KEYS, TRAIN_STATS, summarize_totals
 from peghole_mjx.errors import CorruptFileError, UserInputError
 from peghole_mjx.provenance import provenance
 from peghole_mjx.training import checkpoints
-from peghole_mjx.training.config import TrainConfig, read_run_record
+from peghole_mjx.training.config import TrainConfig, env_setting, read_run_record
 from peghole_mjx.training.functional import make_train
+from peghole_mjx.training.plots import plot_seed_bands, t_interval
+from peghole_mjx.training.run import EVAL_SEED_OFFSET, Run, check_resources, policy_meta
 from peghole_mjx.validation import dumps
 
 #: the losses logged per chunk (means over its calls)
 LOSSES = ("loss/critic", "loss/actor", "loss/alpha", "alpha")
 HISTORY_COLUMNS = ("seed", "step", *(f"train/{k}" for k in TRAIN_STATS), *LOSSES)
-#: evaluation seed offset (as TrainingRun's evaluations: cfg.seed + 10 000 + k)
-EVAL_SEED_OFFSET = 10_000
+
+__all__ = ["EVAL_SEED_OFFSET", "HISTORY_COLUMNS", "LOSSES", "SeedsRun", "t_interval"]
 
 
-def t_interval(values: list[float], level: float = 0.95) -> list[float] | None:
-    """The ``level`` Student-t interval of the mean of ``values`` (None for fewer than 2)."""
-    from scipy import stats
-
-    v = np.asarray([x for x in values if math.isfinite(x)], float)
-    if len(v) < 2:
-        return None
-    half = stats.t.ppf(0.5 + level / 2, len(v) - 1) * v.std(ddof=1) / math.sqrt(len(v))
-    return [float(v.mean() - half), float(v.mean() + half)]
-
-
-class SeedsRun:
+class SeedsRun(Run):
     """``seeds`` SAC runs of ``cfg`` (seeds ``cfg.seed`` ... ``cfg.seed + seeds - 1``)."""
 
-    def __init__(self, cfg: TrainConfig, seeds: int, out: str | Path, progress: bool = True):
-        from peghole_mjx.envs import load
+    LOG_NAME = "history.csv"
+    LOG_COLUMNS = HISTORY_COLUMNS
+    LOG_KEYS = ("seed", "step")
 
+    def __init__(self, cfg: TrainConfig, seeds: int, out: str | Path, progress: bool = True):
         if not isinstance(seeds, int) or seeds < 1:
             raise UserInputError(f"--seeds must be a whole number >= 1, got {seeds!r}")
         self.cfg, self.seeds, self.out, self.progress = cfg, seeds, Path(out), progress
-        self.env = load(cfg.env, config_overrides=cfg.env_overrides or None)
+        self.env = envs.load(cfg.env, config_overrides=cfg.env_overrides or None)
         self.train = make_train(self.env, cfg)
         # before anything is allocated, compiled or written
-        from peghole_mjx.training.run import check_resources
-
         trainer = self.train.trainer
         need_disk = check_resources(self.env, cfg, trainer.obs_size, trainer.act_size, seeds)
         fileio.check_room(self.out, need_disk, "--out")
@@ -87,13 +79,11 @@ class SeedsRun:
 
     @classmethod
     def resume(cls, out: str | Path, progress: bool = True) -> SeedsRun:
+        """The multi-seed run in ``out`` with its own config (nothing written here)."""
         meta, cfg = read_run_record(out)  # schema-checked, its config validated
         if "seeds" not in meta:
             raise CorruptFileError(f"{Path(out) / 'run.json'}: not a multi-seed run (no seeds)")
-        if (Path(out) / "history.csv").exists():  # checked before the env is built
-            from peghole_mjx.training.plots import read_rows
-
-            read_rows(Path(out) / "history.csv", ("seed", "step"), torn_tail=True)
+        cls.log_at(out).read()  # checked before the env is built
         return cls(cfg, meta["seeds"], out, progress)
 
     def checkpoint_files(self) -> tuple[str, ...]:
@@ -101,52 +91,46 @@ class SeedsRun:
         policy folder (``seed_K/``) and the stacked state."""
         return (*(f"seed_{k}" for k in range(self.seeds)), *checkpoints.STATE_FILES)
 
+    def prepare(self, resume: bool):
+        """``(found, rows)``: the checkpoint to resume from (``(path, (carry, step))``, None:
+        from the start) and the rows of history.csv up to it, written back
+        (:meth:`Run._prepare`)."""
+        found, rows = self._prepare(resume)
+        if found is not None:
+            path, (carry, sched) = found
+            found = path, (carry, sched["step"])
+        return found, rows
+
     # ------------------------------------------------------------------ state I/O
     def _template(self):
         shapes = jax.eval_shape(self._init, self.keys)
         return jax.tree.map(lambda s: np.zeros(s.shape, s.dtype), shapes)
 
-    def _load(self, path: Path):
-        sched = json.loads((path / "state.json").read_text())
-        if not isinstance(sched, dict) or not isinstance(sched.get("step"), int):
-            raise CorruptFileError(f"{path}/state.json holds no step")
-        host = checkpoints.restore_state(path, self._template(), sched.pop("empty_leaves", {}))
-        return jax.tree.map(jnp.asarray, host), sched["step"]
+    def _on_device(self, template, host):
+        return jax.tree.map(jnp.asarray, host)
 
-    def _save(self, carry, step: int) -> None:
-        host = jax.device_get(carry)
-
-        def write_files(folder: Path) -> None:
-            for k in range(self.seeds):
-                self._save_policy(folder / f"seed_{k}", host, k, step, atomic=False)
-            saved = checkpoints.save_state(folder, host)
-            fileio.write_text(folder / "state.json", dumps({"step": step, **saved}) + "\n")
-
-        checkpoints.write(self.ckpt_dir, step, write_files)
+    def _write_policies(self, folder: Path, host, step: int) -> None:
+        for k in range(self.seeds):
+            self._save_policy(folder / f"seed_{k}", host, k, step, atomic=False)
 
     def _save_policy(self, path: Path, carry, k: int, step: int, atomic: bool = True) -> None:
-        from peghole_mjx.policies import save_policy
-        from peghole_mjx.training.run import policy_meta
-
         params = _seed_slice(self.train.policy_params(carry), k)
         cfg = dataclasses.replace(self.cfg, seed=self.cfg.seed + k)
-        save_policy(path, params, policy_meta(cfg, self.train.network, step), atomic=atomic)
+        meta = policy_meta(cfg, self.train.network, step)
+        policies.save_policy(path, params, meta, atomic=atomic)
+
+    def _record(self) -> dict[str, Any]:
+        return {
+            "config": self.cfg.as_dict(),
+            "seeds": self.seeds,
+            "network": self.train.network,
+            **provenance(),
+        }
 
     # ------------------------------------------------------------------ history
     def _rows(self, upto: int | None = None) -> list[dict[str, str]]:
-        from peghole_mjx.training.plots import read_rows
-
-        path = self.out / "history.csv"
-        if not path.exists():
-            return []
-        rows = read_rows(path, ("seed", "step"), torn_tail=True)  # schema-checked
-        return [r for r in rows if upto is None or int(r["step"]) <= upto]
-
-    def _write_rows(self, rows: list[dict[str, Any]]) -> None:
-        with fileio.atomic_open(self.out / "history.csv", "w") as fh:
-            w = csv.DictWriter(fh, fieldnames=HISTORY_COLUMNS, extrasaction="ignore")
-            w.writeheader()
-            w.writerows(rows)
+        """The rows of history.csv (up to env step ``upto``), schema-checked."""
+        return self.log.read(upto)
 
     def _chunk_rows(self, calls: list[tuple[bool, dict]], step: int) -> list[dict[str, Any]]:
         """One row per seed: the training episodes that ended in ``calls`` (``(learn,
@@ -160,97 +144,65 @@ class SeedsRun:
             totals = {key: float(sum(np.sum(c[key][k]) for c in calls)) for key in TOTAL_KEYS}
             stats = summarize_totals(totals)
             row: dict[str, Any] = {"seed": self.cfg.seed + k, "step": step}
-            row.update({f"train/{s}": _fmt(stats[s]) for s in TRAIN_STATS if s in stats})
-            row.update({m: _fmt(float(np.mean([c[m][k] for c in learning]))) for m in LOSSES})
+            row.update({f"train/{s}": stats[s] for s in TRAIN_STATS if s in stats})
+            row.update({m: float(np.mean([c[m][k] for c in learning])) for m in LOSSES})
             rows.append(row)
         return rows
 
-    # ------------------------------------------------------------------ main loop
-    def run(self, resume: bool = False) -> dict[str, Any]:
-        from tqdm import tqdm
+    # ------------------------------------------------------------------ the driver's hooks
+    @property
+    def total_steps(self) -> int:
+        return len(self._flags) * self.steps_per_call
 
-        from peghole_mjx.training.lock import RunLock
+    @property
+    def steps_per_call(self) -> int:
+        return self.train.steps_per_call
 
-        self.out.mkdir(parents=True, exist_ok=True)
-        with RunLock(self.out):
-            found, rows = self.prepare(resume)
-            flags = np.asarray(self.train.learn_flags())
-            per_call = self.train.steps_per_call
-            bar = tqdm(
-                total=len(flags) * per_call,
-                unit="step",
-                unit_scale=True,
-                desc=f"SAC {self.cfg.env} x {self.seeds} seeds",
-                file=sys.stderr,
-                disable=not self.progress,
-                dynamic_ncols=True,
-            )
-            if found is not None:
-                path, (carry, step) = found
-                print(f"resumed from {path} at {step} env steps", file=sys.stderr)
-            else:
-                carry, step = self._init(self.keys), 0
-            bar.update(step)
-            chunk: list[tuple[bool, dict]] = []
-            for i in range(step // per_call, len(flags)):
-                carry, hist = self._call(carry, jnp.asarray(flags[i]))
-                step += per_call
-                chunk.append((bool(flags[i]), hist))
-                bar.update(per_call)
-                learned = i + 1 - self.train.prefill_calls
-                if learned > 0 and (learned % self.chunk_calls == 0 or i + 1 == len(flags)):
-                    rows += self._chunk_rows(chunk, step)
-                    chunk = []
-                    self._write_rows(rows)
-                    self._save(carry, step)
-            bar.close()
-            return self.finish(carry, step)
+    @property
+    def _flags(self) -> np.ndarray:
+        """``learn`` of every call of the run (the prefill calls, then the learning calls)."""
+        return np.asarray(self.train.learn_flags())
 
-    def prepare(self, resume: bool):
-        """``(found, rows)``: the checkpoint to resume from (``(path, (carry, step))``, None:
-        from the start) and the rows of history.csv up to it, written back. Holding the lock:
-        a new run refuses a folder that holds a run (but for a failed start, replaced); a
-        resume verifies each checkpoint by this run's layout (``seed_K/`` policies and the
-        state), falls back past corrupt ones and, finding none, sets the history aside
-        (``history_N/``) before starting over."""
-        from peghole_mjx.training.run import clear_failed_start, failed_start, starting_over
+    def _desc(self) -> str:
+        return f"SAC {self.cfg.env} x {self.seeds} seeds"
 
-        found = None
-        if resume:
-            self._rows()  # history.csv schema-checked before any work (file and line)
-            found = checkpoints.newest_valid(self.ckpt_dir, self._load, self.checkpoint_files())
-            if found is None:
-                starting_over(self.out, self.ckpt_dir)
-        elif (self.out / "run.json").exists():
-            if not failed_start(self.out):
-                raise UserInputError(
-                    f"{self.out} already holds a training run: use --resume or a new --out"
-                )
-            clear_failed_start(self.out)
-        if not (self.out / "run.json").exists():
-            meta = {
-                "config": self.cfg.as_dict(),
-                "seeds": self.seeds,
-                "network": self.train.network,
-                **provenance(),
-            }
-            fileio.write_text(self.out / "run.json", dumps(meta, indent=2) + "\n")
-        rows = self._rows(upto=found[1][1]) if found is not None else []
-        self._write_rows(rows)
-        return found, rows
+    def _init_carry(self):
+        return self._init(self.keys)
 
+    def _start(self, carry, step, sched, tb):
+        self._chunk: list[tuple[bool, dict]] = []
+        self._learn = self._flags
+        return carry, step
+
+    def _advance(self, carry, step: int, bar):
+        learn = self._learn[step // self.steps_per_call]
+        carry, hist = self._call(carry, jnp.asarray(learn))
+        self._chunk.append((bool(learn), hist))
+        return carry
+
+    def _at_boundary(self, step: int) -> bool:
+        """After every ``chunk_calls`` learning calls, and after the last call."""
+        calls = step // self.steps_per_call
+        learned = calls - self.train.prefill_calls
+        return learned > 0 and (learned % self.chunk_calls == 0 or calls == len(self._learn))
+
+    def _boundary_rows(self, carry, step: int, bar):
+        rows, self._chunk = self._chunk_rows(self._chunk, step), []
+        return rows, None
+
+    def _finish(self, carry, step: int) -> dict[str, Any]:
+        return self.finish(carry, step)
+
+    # ------------------------------------------------------------------ outputs
     def finish(self, carry, step: int) -> dict[str, Any]:
         """Each seed's final policy, evaluated on the same episodes; seeds.json; curves."""
-        from peghole_mjx.envs.rollout import rollout
-        from peghole_mjx.policies import make_policy_fn
-
-        policy_fn = make_policy_fn(self.train.network, deterministic=True)
+        policy_fn = policies.make_policy_fn(self.train.network, deterministic=True)
         host = jax.device_get(carry)
         per_seed = []
         for k in range(self.seeds):
             self._save_policy(self.out / f"seed_{k}" / "final_policy", host, k, step)
             params = _seed_slice(self.train.policy_params(host), k)
-            res = rollout(
+            res = rollouts.rollout(
                 self.env,
                 policy_fn,
                 self.cfg.num_eval_envs,
@@ -270,14 +222,17 @@ class SeedsRun:
                     "mean": float(np.mean(finite)) if finite else None,
                     "ci95_t": t_interval(vals),
                 }
+        cfg = self.cfg
         summary = {
-            "env": self.cfg.env,
-            "compliance_strategy": bool(self.cfg.compliance_strategy),
-            "profile": self.cfg.profile,
-            "seeds": [self.cfg.seed + k for k in range(self.seeds)],
+            "env": cfg.env,
+            "compliance_strategy": bool(
+                env_setting(cfg.env, cfg.env_overrides, "compliance_strategy")
+            ),
+            "profile": cfg.profile,
+            "seeds": [cfg.seed + k for k in range(self.seeds)],
             "env_steps": step,
-            "eval_episodes_per_seed": self.cfg.num_eval_envs,
-            "eval_seed": self.cfg.seed + EVAL_SEED_OFFSET,
+            "eval_episodes_per_seed": cfg.num_eval_envs,
+            "eval_seed": cfg.seed + EVAL_SEED_OFFSET,
             "final_eval": per_seed,
             "final_eval_over_seeds": across,
             **provenance(),
@@ -285,8 +240,6 @@ class SeedsRun:
         # strict JSON: a statistic without a value (no successful episode) is null, not NaN
         fileio.write_text(self.out / "seeds.json", dumps(summary, indent=2) + "\n")
         try:
-            from peghole_mjx.training.plots import plot_seed_bands
-
             plot_seed_bands([self.out], self.out / "curves.png")
         except Exception as exc:  # a plot must never lose a finished run
             print(f"warning: curves not plotted: {exc}", file=sys.stderr)
@@ -296,7 +249,3 @@ class SeedsRun:
 def _seed_slice(tree, k: int):
     """Seed ``k``'s part of a tree stacked over seeds."""
     return jax.tree.map(lambda x: np.asarray(x[k]), tree)
-
-
-def _fmt(v):
-    return f"{v:.6g}" if isinstance(v, float) else v

@@ -1,0 +1,396 @@
+"""Run an exported policy next to a robot: NumPy and ONNX Runtime only, no JAX, no MuJoCo.
+
+``peghole export POLICY --out DIR`` (:mod:`peghole_mjx.policies.export`) writes ``DIR`` with
+``policy.onnx`` (the observation normaliser and the policy network up to the deterministic
+action in [-1, 1]), ``action.json`` (the observation layout, the action decoding, the frames
+and the control period) and a copy of ``policy.json``. :class:`DeployedPolicy` reads such a
+folder and turns sensor readings into impedance commands, exactly as the env does::
+
+    from peghole_mjx.deploy import DeployedPolicy
+
+    policy = DeployedPolicy("exported/rect")
+    policy.reset(commanded_tip_m=(0.0, 0.0, -0.1495))  # the tip set-point, peg inserted
+    every 20 ms (``policy.period_s``):
+        cmd = policy.act(wrench_N_Nm, flange_pos_m, flange_tilt_rad)
+        send cmd.compliance_centre_target_m, cmd.stiffness, cmd.wrench_ff_tool, ...
+
+Every input and output is in the *hole frame* (origin at the hole mouth, +z out of the hole,
+the extraction direction), SI units; :meth:`DeployedPolicy.flange_pose` and
+:meth:`DeployedPolicy.wrench_from_sensor` convert robot-base and sensor-frame readings. The
+policy keeps the state the actions integrate (the commanded tip, the feed-forward force, the
+previous action), as the env does; :meth:`DeployedPolicy.reset` starts an extraction.
+
+Sensor readings that are not finite (NaN or infinity) are *refused*: :class:`SensorError`
+(one line), and nothing changes, so the robot keeps the last command it was sent until a
+finite reading comes (decided 2026-12-02: a command computed from a zeroed reading, what the
+simulator does with a non-finite observation entry, is not a safe thing to send a robot).
+
+This module imports neither JAX nor MuJoCo (tested: tests/test_export.py runs it with both
+blocked), so it runs on a robot PC with ``pip install numpy onnxruntime`` and this one file
+plus :mod:`peghole_mjx.errors` (the package's ``__init__`` imports neither). The mapping onto
+a KUKA iiwa's Cartesian impedance mode: docs/guide/deploy.md.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from peghole_mjx._optional import optional_import
+from peghole_mjx.errors import CorruptFileError, UserInputError
+
+#: the ``action.json`` format this module reads (and :mod:`peghole_mjx.policies.export` writes)
+EXPORT_FORMAT_VERSION = 1
+#: the files of an exported folder
+ACTION_FILE = "action.json"
+ONNX_FILE = "policy.onnx"
+POLICY_FILE = "policy.json"
+#: ``action.json``'s ``format`` entry
+FORMAT_NAME = "peghole_mjx.export"
+#: the readings and state an observation entry may name (``observation.entries[].source``)
+SOURCES = frozenset(
+    {
+        "flange_pos_m",
+        "force_N",
+        "torque_Nm",
+        "flange_tilt_rad",
+        "k_xy_N_m",
+        "k_rot_Nm_rad",
+        "L_C_m",
+        "prev_action",
+        "force_ff_N",
+        "command_offset_m",
+    }
+)
+
+
+class SensorError(UserInputError):
+    """A sensor reading that cannot be used: NaN or infinity, or the wrong shape. Nothing
+    changes: the robot keeps the last command it was sent."""
+
+
+@dataclass(frozen=True)
+class ImpedanceCommand:
+    """What one action commands the impedance controller (hole frame, SI units).
+
+    The rotation is held: the policy never commands the tool orientation, which stays at its
+    value of :meth:`DeployedPolicy.reset`. ``stiffness`` and ``wrench_ff_tool`` act in the
+    compliance frame: the commanded tool frame (``tool_rotation``) moved to the compliance
+    centre, ``compliance_centre_m`` above the tip on the peg axis.
+    """
+
+    step: int  # control steps since reset (1 for the first command)
+    action: np.ndarray  # (A,) the policy's action in [-1, 1] (what the env's step takes)
+    tip_target_m: np.ndarray  # (3,) commanded peg-tip position
+    tip_velocity_m_s: np.ndarray  # (3,) (tip_target - previous tip_target) / period
+    tool_rotation: np.ndarray  # (3, 3) commanded tool orientation (columns: tool x, y, z)
+    compliance_centre_m: float  # L_C: the compliance centre's height above the tip, m
+    compliance_centre_target_m: np.ndarray  # (3,) tip_target - L_C * tool z axis
+    stiffness: np.ndarray  # (6,) K_x, K_y, K_z (N/m), K_rx, K_ry, K_rz (N m/rad)
+    damping_ratio: float  # of every axis (1 = critical)
+    force_ff_hole_N: np.ndarray  # (3,) accumulated feed-forward force, hole frame
+    wrench_ff_tool: np.ndarray  # (6,) the same force in the compliance frame, zero moment
+
+    @property
+    def k_xy_N_m(self) -> float:
+        """Lateral stiffness (N/m)."""
+        return float(self.stiffness[0])
+
+    @property
+    def k_rot_Nm_rad(self) -> float:
+        """Rotational stiffness K_theta (N m/rad)."""
+        return float(self.stiffness[3])
+
+
+def rotvec_from_mat(R: np.ndarray) -> np.ndarray:
+    """Rotation vector (axis * angle, rad) of a rotation matrix; the env's formula
+    (:func:`peghole_mjx.control.kinematics.rotvec_from_mat`) in NumPy."""
+    R = np.asarray(R, np.float64)
+    s = 0.5 * np.array([R[2, 1] - R[1, 2], R[0, 2] - R[2, 0], R[1, 0] - R[0, 1]])
+    sin = float(np.linalg.norm(s))
+    cos = 0.5 * (float(np.trace(R)) - 1.0)
+    angle = math.atan2(sin, cos)
+    return s * (angle / sin if sin > 1e-9 else 1.0)
+
+
+def mat_from_rotvec(v) -> np.ndarray:
+    """Rotation matrix of a rotation vector (Rodrigues' formula)."""
+    v = np.asarray(v, np.float64)
+    th = float(np.linalg.norm(v))
+    k = v / max(th, 1e-12)
+    K = np.array([[0.0, -k[2], k[1]], [k[2], 0.0, -k[0]], [-k[1], k[0], 0.0]])
+    return np.eye(3) + math.sin(th) * K + (1 - math.cos(th)) * K @ K
+
+
+def _vector(value: Any, size: int, name: str) -> np.ndarray:
+    """``value`` as a finite float64 vector of ``size``, else :class:`SensorError`."""
+    try:
+        x = np.asarray(value, np.float64)
+    except (TypeError, ValueError):
+        raise SensorError(f"{name} must be {size} numbers, got {value!r}") from None
+    if x.shape != (size,):
+        raise SensorError(f"{name} must be {size} numbers, got shape {x.shape}")
+    if not np.all(np.isfinite(x)):
+        raise SensorError(
+            f"{name} holds NaN or infinity ({np.array2string(x, precision=4)}): refused, "
+            "the robot keeps its last command"
+        )
+    return x
+
+
+def read_spec(folder: str | Path) -> dict[str, Any]:
+    """``action.json`` of an exported folder, its format checked (one line otherwise)."""
+    path = Path(folder) / ACTION_FILE
+    if not path.is_file():
+        raise UserInputError(
+            f"{folder} is not an exported policy (no {ACTION_FILE}): write one with "
+            "peghole export POLICY --out DIR"
+        )
+    try:
+        spec = json.loads(path.read_text())
+    except (ValueError, UnicodeDecodeError) as exc:
+        raise CorruptFileError(f"{path} is not valid JSON ({exc})") from None
+    if not isinstance(spec, dict) or spec.get("format") != FORMAT_NAME:
+        raise CorruptFileError(
+            f"{path} is not a peghole_mjx export ('format' is not {FORMAT_NAME!r})"
+        )
+    version = spec.get("format_version")
+    if version != EXPORT_FORMAT_VERSION or type(version) is not int:
+        raise UserInputError(
+            f"{path}: export format {version!r}, this peghole_mjx reads format "
+            f"{EXPORT_FORMAT_VERSION}: export the policy again (peghole export POLICY --out DIR)"
+        )
+    return spec
+
+
+class DeployedPolicy:
+    """An exported policy (``peghole export``) with the state its actions integrate.
+
+    ``folder``: the export; ``threads``: ONNX Runtime's intra-op threads (1: one core, the
+    network is 2 x 256 wide and takes tens of microseconds).
+    """
+
+    def __init__(self, folder: str | Path, threads: int = 1):
+        self.folder = Path(folder)
+        spec = read_spec(self.folder)
+        self.spec = spec
+        try:
+            self._parse(spec)
+        except (KeyError, TypeError, ValueError, AttributeError) as exc:
+            raise CorruptFileError(
+                f"{self.folder / ACTION_FILE} is damaged: a missing or malformed entry ({exc!r})"
+            ) from None
+
+        ort = optional_import("onnxruntime", "running an exported policy")
+        onnx_path = self.folder / self._onnx_file
+        if not onnx_path.is_file():
+            raise UserInputError(f"{self.folder}: {onnx_path.name} is missing")
+        options = ort.SessionOptions()
+        options.intra_op_num_threads = max(1, int(threads))
+        options.inter_op_num_threads = 1
+        try:
+            self._session = ort.InferenceSession(
+                str(onnx_path), options, providers=["CPUExecutionProvider"]
+            )
+        except Exception as exc:  # onnxruntime raises its own classes for a damaged file
+            msg = " ".join(str(exc).split())[:200]
+            raise CorruptFileError(f"{onnx_path} cannot be loaded ({msg})") from None
+        (inp,) = self._session.get_inputs()
+        self._input = inp.name
+        if inp.shape[-1] != self.observation_size:
+            raise CorruptFileError(
+                f"{onnx_path} takes observations of size {inp.shape[-1]}, {ACTION_FILE} "
+                f"says {self.observation_size}"
+            )
+        self._started = False
+
+    def _parse(self, spec: dict[str, Any]) -> None:
+        """The numbers of ``action.json`` this class uses."""
+        obs, act, dec = spec["observation"], spec["action"], spec["decode"]
+        self.observation_size = int(obs["size"])
+        self.action_size = int(act["size"])
+        #: the control period (s): one :meth:`act` per period
+        self.period_s = float(spec["control"]["period_s"])
+        self._entries = [
+            (e["source"], int(e["component"]), float(e["offset"]), float(e["scale"]))
+            for e in obs["entries"]
+        ]
+        self._tip_step = np.asarray(dec["tip_step_m"], np.float64)
+        self._ff_step = float(dec["force_ff_step_N"])
+        self._ff_cap = np.asarray(dec["force_ff_cap_N"], np.float64)
+        self._gains = {
+            name: (int(g["index"]), float(g["lo"]), float(g["hi"]))
+            for name, g in dec["learned_gains"].items()
+        }
+        self._fixed = {k: float(v) for k, v in dec["fixed_gains"].items()}
+        self._k_z = float(dec["k_z_N_m"])
+        self._zeta = float(dec["damping_ratio"])
+        tool = spec["tool"]
+        self._tool_down = np.asarray(tool["tool_down_rotation"], np.float64)
+        self._tip_in_flange = np.asarray(tool["tip_in_flange_m"], np.float64)
+        self._peg_mass = float(tool["peg_mass_kg"])
+        self._gravity = np.asarray(tool["gravity_m_s2"], np.float64)
+        self._success_m = float(spec["episode"]["success_margin_m"])
+        self._onnx_file = str(spec["onnx"]["file"])
+        unknown = sorted({e[0] for e in self._entries} - SOURCES)
+        if unknown or len(self._entries) != self.observation_size:
+            raise ValueError(f"observation entries: {len(self._entries)}, unknown {unknown}")
+
+    # ------------------------------------------------------------------ episode state
+    def reset(
+        self,
+        commanded_tip_m,
+        commanded_tilt_rad=(0.0, 0.0, 0.0),
+        *,
+        k_xy_N_m: float | None = None,
+        k_rot_Nm_rad: float | None = None,
+        L_C_m: float | None = None,
+    ) -> None:
+        """Start an extraction: the commanded tip is ``commanded_tip_m`` (the impedance
+        controller's set-point while the peg is inserted; hole frame, m), the commanded tool
+        orientation is ``commanded_tilt_rad`` (a rotation vector from straight down, held
+        throughout), the feed-forward force 0, the previous action 0, and the gains their
+        fixed values (``action.json`` ``decode.fixed_gains``) unless given."""
+        self._cmd_tip = _vector(commanded_tip_m, 3, "commanded_tip_m")
+        tilt = _vector(commanded_tilt_rad, 3, "commanded_tilt_rad")
+        self._cmd_rot = mat_from_rotvec(tilt) @ self._tool_down
+        self._ff = np.zeros(3)
+        self._k_xy = self._fixed["k_xy_N_m"] if k_xy_N_m is None else float(k_xy_N_m)
+        self._k_rot = self._fixed["k_rot_Nm_rad"] if k_rot_Nm_rad is None else float(k_rot_Nm_rad)
+        self._L_C = self._fixed["L_C_m"] if L_C_m is None else float(L_C_m)
+        self._prev_action = np.zeros(self.action_size)
+        self._step = 0
+        self._started = True
+
+    def _need_reset(self) -> None:
+        if not self._started:
+            raise UserInputError("call reset(commanded_tip_m=...) before the first act()")
+
+    # ------------------------------------------------------------------ readings
+    def flange_pose(self, flange_pos, flange_rot, hole_pos, hole_rot):
+        """``(flange_pos_m, flange_tilt_rad)`` in the hole frame from poses in any common frame
+        (e.g. the robot base): positions (3,) m, rotations (3, 3). The tilt is the rotation
+        vector of the flange orientation relative to straight down (``tool_down_rotation``)."""
+        H = np.asarray(hole_rot, np.float64)
+        pos = H.T @ (_vector(flange_pos, 3, "flange_pos") - _vector(hole_pos, 3, "hole_pos"))
+        R = H.T @ np.asarray(flange_rot, np.float64) @ self._tool_down.T
+        return pos, rotvec_from_mat(R)
+
+    def wrench_from_sensor(self, force_N, torque_Nm, sensor_rot_in_hole) -> np.ndarray:
+        """The wrench input of :meth:`act` from an F/T sensor reading: the force the flange
+        side exerts on the peg (sensor frame), rotated into the hole frame with the peg's
+        weight removed (``tool.peg_mass_kg``), and the torque rotated (as the env does)."""
+        R = np.asarray(sensor_rot_in_hole, np.float64)
+        f = R @ _vector(force_N, 3, "force_N") + self._peg_mass * self._gravity
+        t = R @ _vector(torque_Nm, 3, "torque_Nm")
+        return np.concatenate([f, t])
+
+    def tip_position(self, flange_pos_m, flange_tilt_rad) -> np.ndarray:
+        """The peg tip (hole frame, m) of a flange pose: the peg is rigid on the flange."""
+        pos = _vector(flange_pos_m, 3, "flange_pos_m")
+        R = mat_from_rotvec(_vector(flange_tilt_rad, 3, "flange_tilt_rad")) @ self._tool_down
+        return pos + R @ self._tip_in_flange
+
+    def extracted(self, flange_pos_m, flange_tilt_rad) -> bool:
+        """True once the tip is ``episode.success_margin_m`` above the mouth (the env's
+        success: the extraction is done, stop calling :meth:`act`)."""
+        return bool(self.tip_position(flange_pos_m, flange_tilt_rad)[2] > self._success_m)
+
+    def observation(self, wrench_N_Nm, flange_pos_m, flange_tilt_rad) -> np.ndarray:
+        """The policy's observation (``action.json`` ``observation.entries``) of these
+        readings and the current state: ``wrench_N_Nm`` (6,) the contact wrench (force N,
+        torque N m; :meth:`wrench_from_sensor`), averaged over the last control period;
+        ``flange_pos_m`` (3,) and ``flange_tilt_rad`` (3,) the flange pose
+        (:meth:`flange_pose`); all in the hole frame. Non-finite readings: :class:`SensorError`."""
+        self._need_reset()
+        w = _vector(wrench_N_Nm, 6, "wrench_N_Nm")
+        pos = _vector(flange_pos_m, 3, "flange_pos_m")
+        tilt = _vector(flange_tilt_rad, 3, "flange_tilt_rad")
+        sources = {
+            "flange_pos_m": pos,
+            "force_N": w[:3],
+            "torque_Nm": w[3:],
+            "flange_tilt_rad": tilt,
+            "k_xy_N_m": np.array([self._k_xy]),
+            "k_rot_Nm_rad": np.array([self._k_rot]),
+            "L_C_m": np.array([self._L_C]),
+            "prev_action": self._prev_action,
+            "force_ff_N": self._ff,
+        }
+        if any(s == "command_offset_m" for s, *_ in self._entries):
+            sources["command_offset_m"] = self._cmd_tip - self.tip_position(pos, tilt)
+        obs = [(sources[s][c] - off) * scale for s, c, off, scale in self._entries]
+        return np.asarray(obs, np.float32)
+
+    # ------------------------------------------------------------------ policy
+    def act_obs(self, obs) -> np.ndarray:
+        """The raw action(s) in [-1, 1] of observation(s) ``obs`` ((n,) or (batch, n)):
+        ``policy.onnx`` alone, no state read or changed."""
+        x = np.asarray(obs, np.float32)
+        if x.ndim not in (1, 2) or x.shape[-1] != self.observation_size:
+            raise UserInputError(
+                f"observation of shape {x.shape}: this policy takes {self.observation_size} "
+                f"numbers ({self.spec['policy']['env']}; see {ACTION_FILE} observation.entries)"
+            )
+        if not np.all(np.isfinite(x)):
+            raise SensorError("the observation holds NaN or infinity: refused")
+        out = self._session.run(None, {self._input: x.reshape(-1, self.observation_size)})[0]
+        return out[0] if x.ndim == 1 else out
+
+    def decode(self, action) -> ImpedanceCommand:
+        """The impedance command of ``action`` (the env's ``decode_action``), advancing the
+        state: the commanded tip moves by ``tip_step_m`` x action[0:3], the feed-forward force
+        by ``force_ff_step_N`` x action[3:6] within ``force_ff_cap_N``; each learned gain is
+        set from its action on [lo, hi]."""
+        self._need_reset()
+        a = np.asarray(action, np.float64)
+        if a.shape != (self.action_size,):
+            raise UserInputError(f"action must be {self.action_size} numbers, got {a.shape}")
+        a = np.clip(np.where(np.isnan(a), 0.0, a), -1.0, 1.0)
+        prev = self._cmd_tip
+        self._cmd_tip = prev + a[:3] * self._tip_step
+        self._ff = np.clip(self._ff + a[3:6] * self._ff_step, -self._ff_cap, self._ff_cap)
+        gains = {"k_xy": self._k_xy, "k_rot": self._k_rot, "L_C": self._L_C}
+        for name, (i, lo, hi) in self._gains.items():
+            gains[name] = lo + 0.5 * (a[i] + 1.0) * (hi - lo)
+        self._k_xy, self._k_rot, self._L_C = gains["k_xy"], gains["k_rot"], gains["L_C"]
+        self._prev_action = a
+        self._step += 1
+        axis = self._cmd_rot[:, 2]
+        k_xy, k_rot = self._k_xy, self._k_rot
+        return ImpedanceCommand(
+            step=self._step,
+            action=a.astype(np.float32),
+            tip_target_m=self._cmd_tip.copy(),
+            tip_velocity_m_s=(self._cmd_tip - prev) / self.period_s,
+            tool_rotation=self._cmd_rot.copy(),
+            compliance_centre_m=self._L_C,
+            compliance_centre_target_m=self._cmd_tip - self._L_C * axis,
+            stiffness=np.array([k_xy, k_xy, self._k_z, k_rot, k_rot, k_rot]),
+            damping_ratio=self._zeta,
+            force_ff_hole_N=self._ff.copy(),
+            wrench_ff_tool=np.concatenate([self._cmd_rot.T @ self._ff, np.zeros(3)]),
+        )
+
+    def act(self, wrench_N_Nm, flange_pos_m, flange_tilt_rad) -> ImpedanceCommand:
+        """One control step: the observation of these readings (:meth:`observation`), the
+        policy's action (:meth:`act_obs`) and its impedance command (:meth:`decode`). A
+        refused reading (:class:`SensorError`) changes nothing."""
+        obs = self.observation(wrench_N_Nm, flange_pos_m, flange_tilt_rad)
+        return self.decode(self.act_obs(obs))
+
+
+__all__ = [
+    "EXPORT_FORMAT_VERSION",
+    "DeployedPolicy",
+    "ImpedanceCommand",
+    "SensorError",
+    "mat_from_rotvec",
+    "read_spec",
+    "rotvec_from_mat",
+]

@@ -1,0 +1,154 @@
+"""One writer per training run: ``DIR/run.lock`` holds the PID and host of the process writing.
+
+Taken by ``peghole train`` (new run and ``--resume``) before anything of the run is read or
+written, released when it ends. The process identity it records (PID, host, start time:
+:func:`_proc_start`, :func:`_alive`) also names the holders of the sweep's slice claims
+(:mod:`peghole_mjx.experiments.sweep`), which is why this module sits at the package's base
+rather than in :mod:`peghole_mjx.training` (2026-12-02: the experiments import nothing of
+training). The lock file is created complete and atomically (written under
+a temporary name, then hard-linked to ``run.lock``, which fails if it exists), so a second
+process either takes it or reads who holds it. A lock whose process is gone (killed with
+kill -9, a crash, a reboot) is stale: on the same host it is detected (no such PID, or the PID
+now belongs to a process started later) and taken over with a warning. A lock held from
+another host cannot be checked from here: the message says which host, and to delete the
+file if that run is known to be over.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import json
+import os
+import socket
+import sys
+import time
+from pathlib import Path
+
+from peghole_mjx.errors import UserInputError
+
+LOCK_NAME = "run.lock"
+
+
+def _proc_start(pid: int) -> str | None:
+    """The start time of process ``pid`` (Linux ``/proc``), to tell a reused PID; else None."""
+    try:
+        stat = Path(f"/proc/{pid}/stat").read_text()
+    except OSError:
+        return None
+    return stat.rsplit(")", 1)[-1].split()[19]  # field 22, starttime
+
+
+def _alive(pid: int) -> bool:
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except PermissionError:  # exists, owned by another user
+        return True
+    return True
+
+
+class RunLockedError(UserInputError):
+    """Another live process holds the run's lock."""
+
+
+class RunLock:
+    """The lock of the run in ``out`` (a context manager; :meth:`acquire` / :meth:`release`)."""
+
+    def __init__(self, out: str | Path):
+        self.out = Path(out)
+        self.path = self.out / LOCK_NAME
+        self.held = False
+
+    def _record(self) -> dict:
+        return {
+            "pid": os.getpid(),
+            "host": socket.gethostname(),
+            "start": _proc_start(os.getpid()),
+            "since": time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime()),
+        }
+
+    def holder(self) -> dict | None:
+        """The lock's record, ``{}`` if unreadable (garbled), None if there is no lock."""
+        try:
+            rec = json.loads(self.path.read_text())
+        except FileNotFoundError:
+            return None
+        except (OSError, ValueError):
+            return {}
+        return rec if isinstance(rec, dict) else {}
+
+    def _is_stale(self, rec: dict) -> bool:
+        if not rec or not isinstance(rec.get("pid"), int):
+            return True  # garbled: no writer ever leaves it so (it is created complete)
+        if rec.get("host") != socket.gethostname():
+            return False  # cannot check another host's processes
+        if not _alive(rec["pid"]):
+            return True
+        start = _proc_start(rec["pid"])
+        return rec.get("start") is not None and start is not None and start != rec["start"]
+
+    def acquire(self) -> RunLock:
+        self.out.mkdir(parents=True, exist_ok=True)
+        tmp = self.out / f".{LOCK_NAME}.{os.getpid()}"
+        try:
+            self._write_record(tmp)
+            for _ in range(3):
+                try:
+                    os.link(tmp, self.path)  # atomic: fails if the lock exists
+                    self.held = True
+                    return self
+                except FileExistsError:
+                    pass
+                rec = self.holder()
+                if rec is None:
+                    continue  # released meanwhile: try again
+                if rec.get("pid") == os.getpid() and rec.get("host") == socket.gethostname():
+                    raise RunLockedError(f"{self.out} is already locked by this process")
+                if not self._is_stale(rec):
+                    raise RunLockedError(
+                        f"{self.out} is in use by another peghole process (pid {rec['pid']} on "
+                        f"{rec.get('host', '?')}, since {rec.get('since', '?')}): wait for it to "
+                        f"end, or delete {self.path} if that run is known to be over"
+                    )
+                print(
+                    f"warning: removing the stale lock of {self.out} (pid {rec.get('pid', '?')} "
+                    "is gone)",
+                    file=sys.stderr,
+                )
+                with contextlib.suppress(FileNotFoundError):
+                    self.path.unlink()
+            raise RunLockedError(f"could not take the lock {self.path}: it keeps changing")
+        finally:
+            with contextlib.suppress(OSError):
+                tmp.unlink()
+
+    def _write_record(self, tmp: Path) -> None:
+        """Write the lock record to ``tmp`` and flush it to disk; a failure (a full disk, a
+        read-only folder) is one line naming the lock file (``tmp`` is removed by the
+        caller)."""
+        try:
+            with open(tmp, "w") as f:
+                f.write(json.dumps(self._record()) + "\n")
+                f.flush()
+                os.fsync(f.fileno())
+        except OSError as exc:
+            raise UserInputError(
+                f"cannot write the lock file {self.path} of the run in {self.out} "
+                f"({exc.strerror or exc})"
+            ) from None
+
+    def release(self) -> None:
+        if not self.held:
+            return
+        rec = self.holder()
+        if rec and rec.get("pid") == os.getpid():
+            with contextlib.suppress(FileNotFoundError):
+                self.path.unlink()
+        self.held = False
+
+    def __enter__(self) -> RunLock:
+        return self.acquire()
+
+    def __exit__(self, *exc) -> None:
+        self.release()

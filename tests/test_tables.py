@@ -1,0 +1,173 @@
+"""The docs-table registry (benchmarks/tables.py): every registered table regenerated between
+its markers wherever they are, and ``--check`` failing on a stale table, a table with no
+marker, a marker with no generator and a marker that appears twice."""
+
+import json
+import shutil
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+from benchmarks import common, tables
+from benchmarks.evals import brief
+
+ROOT = Path(__file__).resolve().parents[1]
+
+
+@pytest.fixture(scope="module")
+def registry():
+    return tables.load_tables()
+
+
+@pytest.fixture(scope="module")
+def generated(registry):
+    """Each registered table's text as the docs hold it (before the relinking)."""
+    return {name: tables.current_names(fn()) for name, fn in registry.items()}
+
+
+def block(name: str, body: str) -> str:
+    return f"<!-- table:{name} -->\n{body}\n<!-- /table:{name} -->\n"
+
+
+@pytest.fixture
+def docs(tmp_path, registry, generated):
+    """A docs tree holding every registered table once, up to date: half of them in README.md,
+    the rest in docs/guide/tables.md (two folders down: its links are relinked)."""
+    names = sorted(registry)
+    readme, nested = names[::2], names[1::2]
+    (tmp_path / "README.md").write_text(
+        "# Test\n\n" + "\n".join(block(n, generated[n]) for n in readme)
+    )
+    guide = tmp_path / "docs" / "guide"
+    guide.mkdir(parents=True)
+    body = "\n".join(block(n, tables.relink(generated[n], "docs/guide/tables.md")) for n in nested)
+    (guide / "tables.md").write_text("# Tables\n\n" + body)
+    return tmp_path
+
+
+def check(root: Path, capsys) -> tuple[int, str]:
+    rc = tables.main(["--check", "--root", str(root)])
+    return rc, capsys.readouterr().err
+
+
+def test_check_passes_on_the_committed_tree():
+    res = subprocess.run(
+        [sys.executable, "-m", "benchmarks.tables", "--check"],
+        cwd=ROOT,
+        capture_output=True,
+        text=True,
+    )
+    assert res.returncode == 0, res.stdout + res.stderr
+
+
+def test_an_up_to_date_tree_passes_and_a_stale_table_is_named_then_rewritten(docs, capsys):
+    assert check(docs, capsys) == (0, "")
+    guide = docs / "docs" / "guide" / "tables.md"
+    text = guide.read_text()
+    start = text.index("<!-- table:") + len("<!-- table:")
+    name = text[start : text.index(" -->", start)]
+    body_at = text.index("-->\n", start) + len("-->\n")
+    guide.write_text(text[:body_at] + "| an edited row |\n" + text[body_at:])
+    rc, err = check(docs, capsys)
+    assert rc == 1 and f"table {name}: out of date in docs/guide/tables.md" in err
+    assert "| an edited row |" in guide.read_text()  # --check writes nothing
+    assert tables.main(["--root", str(docs)]) == 0  # the rewrite restores it
+    assert guide.read_text() == text
+    assert check(docs, capsys) == (0, "")
+
+
+def test_a_registered_table_without_a_marker_fails_the_check(docs, capsys, registry):
+    readme = docs / "README.md"
+    text = readme.read_text()
+    name = sorted(registry)[0]  # the first of README.md's tables
+    start, end = text.index(f"<!-- table:{name} -->"), text.index(f"<!-- /table:{name} -->")
+    readme.write_text(text[:start] + text[end + len(f"<!-- /table:{name} -->") :])
+    rc, err = check(docs, capsys)
+    assert rc == 1
+    assert f"table {name}: registered" in err and "no <!-- table:" in err
+
+
+def test_a_duplicate_marker_and_a_marker_without_a_generator_fail_the_check(
+    docs, capsys, generated
+):
+    extra = docs / "docs" / "research" / "page.md"
+    extra.parent.mkdir()
+    extra.write_text(block("throughput", generated["throughput"]) + block("no_such_table", "x"))
+    rc, err = check(docs, capsys)
+    assert rc == 1
+    assert "table throughput: marker appears 2 times (" in err and "docs/research/page.md" in err
+    assert "table no_such_table: marker in docs/research/page.md, but no generator" in err
+
+
+def test_an_unclosed_marker_fails_the_check(docs, capsys):
+    readme = docs / "README.md"
+    text = readme.read_text()
+    readme.write_text(text.replace("<!-- /table:", "<!-- /tabel:", 1))
+    rc, err = check(docs, capsys)
+    assert rc == 1 and "marker not closed" in err
+
+
+def test_a_copy_of_a_real_docs_file_is_regenerated_in_place(tmp_path, capsys):
+    """A temporary copy of README.md (never the real one): its tables are rewritten from the
+    registry, and the copy then passes the check of its own markers."""
+    shutil.copy(ROOT / "README.md", tmp_path / "README.md")
+    tables.main(["--root", str(tmp_path)])  # other tables may have no marker in this tree
+    capsys.readouterr()
+    text = (tmp_path / "README.md").read_text()
+    found = tables.scan(tmp_path)
+    assert found.where, "README.md holds table markers"
+    registry = tables.load_tables()
+    names = {n: registry[n] for n in found.where if n in registry}
+    assert tables.render(text, "README.md", names) == text
+
+
+def test_links_are_relinked_and_old_names_resolved():
+    table = "[`a`](benchmarks/results/perf/roofline.json) [web](https://x.org/a) [up](#anchor)"
+    assert tables.relink(table, "README.md") == table
+    got = tables.relink(table, "docs/guide/page.md")
+    assert "](../../benchmarks/results/perf/roofline.json)" in got
+    assert "](https://x.org/a)" in got and "](#anchor)" in got
+    old = (
+        "`python -m benchmarks.seed_stack --env X` (benchmarks/seed_stack.py), "
+        "benchmarks/results/roofline.json, benchmarks/results/dual_cpu-2core/paired256.json, "
+        "benchmarks/results/no_such_file.json, python -m benchmarks.perf.throughput"
+    )
+    assert tables.current_names(old) == (
+        "`python -m benchmarks.baselines.seed_stack --env X` "
+        "(benchmarks/baselines/seed_stack.py), benchmarks/results/perf/roofline.json, "
+        "benchmarks/results/evals/dual_cpu-2core/paired256.json, "
+        "benchmarks/results/no_such_file.json, python -m benchmarks.perf.throughput"
+    )
+
+
+def test_a_name_registered_by_two_functions_is_refused(registry):
+    def throughput() -> str:
+        return "another generator"
+
+    with pytest.raises(ValueError, match="registered twice"):
+        common.table("throughput")(throughput)
+    assert common.TABLES["throughput"] is registry["throughput"]
+
+
+def test_results_brief_rows_read_committed_files(generated):
+    """At most 15 rows of five cells; every row's result files exist; the thesis's numbers in
+    the code's table are those the committed evaluation records (rect_extract)."""
+    lines = generated["results_brief"].splitlines()
+    assert lines[0] == "| claim | thesis | ours | interval | result file |"
+    rows = lines[2:]
+    assert 0 < len(rows) <= brief.MAX_ROWS
+    for row in rows:
+        cells = [c.strip() for c in row.strip("|").split(" | ")]
+        assert len(cells) == 5, row
+        assert "pending" not in cells[2], row
+        for target in (t.split(")")[0] for t in cells[4].split("](")[1:]):
+            assert (ROOT / target).exists(), target
+    ev = json.loads((ROOT / "peghole_mjx/policies/rect_extract/evaluation.json").read_text())
+    th = ev["thesis"]
+    assert brief.THESIS["R3"][1] == f"{th['force_reduction_pct']} % lower"
+    assert brief.THESIS["R4"][1] == f"{th['success_rate'] * 100:g} %, {th['mean_time_s']} s"
+    assert brief.THESIS["R5"][1] == (
+        f"<= {th['peak_fz_N_policy']:g} N vs > {th['peak_fz_N_baseline']:g} N"
+    )
