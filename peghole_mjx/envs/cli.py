@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import argparse
-import json
 import sys
 
 from peghole_mjx import envs, policies
@@ -13,21 +12,7 @@ from peghole_mjx.envs.engines import CLI_ENGINES, engine_overrides
 from peghole_mjx.errors import UserInputError
 from peghole_mjx.geometry.specs import get_preset
 from peghole_mjx.training.evaluate import config_differences
-from peghole_mjx.validation import arg, dumps
-
-
-def _override(text: str) -> tuple[str, object]:
-    """Parse ``KEY=VALUE`` (VALUE as JSON when possible, e.g. 0.5, true, [0.8, 1.2])."""
-    if "=" not in text:
-        raise argparse.ArgumentTypeError(f"expected KEY=VALUE, got {text!r}")
-    key, value = text.split("=", 1)
-    try:
-        parsed = json.loads(value)
-    except json.JSONDecodeError:
-        parsed = value
-    if isinstance(parsed, list):
-        parsed = tuple(parsed)
-    return key.strip(), parsed
+from peghole_mjx.validation import arg, dumps, key_value
 
 
 def add_parser(sub: argparse._SubParsersAction) -> None:
@@ -62,7 +47,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     r.add_argument(
         "--set",
         dest="overrides",
-        type=_override,
+        type=key_value,
         action="append",
         default=[],
         metavar="KEY=VALUE",
