@@ -33,8 +33,9 @@ if "MUJOCO_GL" not in _os.environ and not _os.environ.get("DISPLAY"):
 # same with or without it (it stores compiled code, keyed by the graph, flags and versions);
 # jax 0.10.2 does not store graphs with host callbacks (measured 2026-12-02: "Not writing
 # persistent cache entry for 'jit_reset' because it uses host callbacks"), so the mujoco
-# engine's reset and step compile again in each process. Set before JAX is imported, like the
-# flag above (docs/guide/reliability.md, "Compilation cache").
+# engine's step and the host half of its reset compile again in each process (rollouts compile
+# the pure-JAX half, PegHoleEnv.reset_start, apart). Set before JAX is imported, like the
+# flag above (docs/guide/getting_started.md, "Compilation cache").
 _CACHE = _os.environ.get("PEGHOLE_JAX_CACHE", "").strip()
 if _CACHE.lower() not in ("0", "off", "false", "no") and not _os.environ.get(
     "JAX_COMPILATION_CACHE_DIR"

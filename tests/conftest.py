@@ -14,5 +14,29 @@ if "JAX_COMPILATION_CACHE_DIR" not in os.environ:
         tempfile.gettempdir(), "peghole_mjx_test_jax_cache"
     )
 os.environ.setdefault("JAX_PERSISTENT_CACHE_MIN_COMPILE_TIME_SECS", "0.5")
+# a size bound turns on JAX's file lock around every cache read and write: the suite's two
+# pytest-xdist workers and their subprocesses share the folder, and an unlocked reader could
+# load an entry another process is still writing
+os.environ.setdefault("JAX_COMPILATION_CACHE_MAX_SIZE", str(16 << 30))
+
+import gc
+
+import jax
+import pytest
 
 import peghole_mjx._mjx  # noqa: F401
+
+
+@pytest.fixture(autouse=True, scope="module")
+def _release_compiled_code():
+    """Drop every compiled executable when a test module ends.
+
+    XLA:CPU maps the code of each loaded executable into the process. Kept for the whole
+    suite, they passed Linux's default limit of 65,530 memory maps (``vm.max_map_count``) and
+    the next executable load crashed the process (SIGSEGV in CI, SIGABRT here, 2026-12-02;
+    test_training.py alone reaches 30,000 maps and 6.3 GB). A graph that a later module needs
+    loads again from the persistent cache.
+    """
+    yield
+    jax.clear_caches()
+    gc.collect()

@@ -18,7 +18,7 @@ from benchmarks import common
 from benchmarks.baselines import pybullet_peghole, time_to_success
 from benchmarks.evals import paired_reduction, rl_vs_rlcs
 from benchmarks.evals.cross_engine import compare, paired_difference
-from benchmarks.perf import engines, plot, roofline, throughput
+from benchmarks.perf import engines, plot, roofline, throughput, warm_start
 from benchmarks.studies import capsule_fidelity
 from peghole_mjx import envs
 from peghole_mjx._mjx import mjx
@@ -602,3 +602,21 @@ def test_time_to_success_result_names_its_engine():
     assert result_path("RectExtract", "cpu-2core").name == "train_rect_cpu-2core.json"
     got = result_path("RectExtractHard", "cpu-2core", "mujoco").name
     assert got == "train_RectExtractHard_mujoco_cpu-2core.json"
+
+
+def test_warm_start_times_the_first_batch_marker_and_the_longest_silence():
+    """The start-time benchmark's clock on a scripted child: output, 0.6 s of silence, then
+    the first-batch marker; bad sizes are a usage error."""
+    code = (
+        "import sys, time; sys.stderr.write('compiling'); sys.stderr.flush(); time.sleep(0.6);"
+        "sys.stderr.write('policy rollout: 1/2'); sys.stderr.flush(); time.sleep(0.1)"
+    )
+    row = warm_start.time_run([sys.executable, "-c", code], dict(os.environ))
+    assert row["returncode"] == 0
+    assert 0.6 <= row["first_batch_s"] < row["wall_s"]
+    assert 0.55 <= row["longest_silence_s"] < row["wall_s"]
+    silent = warm_start.time_run([sys.executable, "-c", "import time; time.sleep(0.3)"], {})
+    assert silent["first_batch_s"] is None and silent["longest_silence_s"] >= 0.3
+    with pytest.raises(SystemExit) as exc:
+        warm_start.main(["--runs", "0"])
+    assert exc.value.code == 2

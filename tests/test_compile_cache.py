@@ -1,6 +1,6 @@
 """The persistent XLA compilation cache that ``import peghole_mjx`` turns on
-(docs/guide/reliability.md, "Compilation cache"): where it goes, how to move or disable it, and that
-JAX's own variable wins."""
+(docs/guide/getting_started.md, "Compilation cache"): where it goes, how to move or disable
+it, and that JAX's own variable wins."""
 
 from __future__ import annotations
 

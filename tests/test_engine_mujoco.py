@@ -11,6 +11,7 @@ import pytest
 from peghole_mjx import envs
 from peghole_mjx.control.reference import impedance_torque, impedance_torque_c
 from peghole_mjx.envs.engine_mujoco import STATE_SPEC, MujocoEngine
+from peghole_mjx.envs.rollout import _batch_reset
 from peghole_mjx.errors import UserInputError
 
 N = 4
@@ -133,6 +134,18 @@ def test_substeps_equal_a_loop_over_one_mjdata_per_world(env, fns):
         np.testing.assert_allclose(got[1 : 1 + 2 * nq], row[1 : 1 + 2 * nq], rtol=1e-6, atol=1e-9)
         np.testing.assert_allclose(got, row, rtol=1e-4, atol=1e-7)
     m.pair_friction[:] = e._pair_friction0
+
+
+def test_a_rollouts_two_graph_reset_equals_the_env_reset(env, fns):
+    """The rollout starts mujoco-engine worlds through two compiled graphs (reset_start, which
+    the persistent cache keeps, then the host-callback half): the same start states, bit for
+    bit, as the env's own one-graph reset."""
+    keys = jax.random.split(jax.random.PRNGKey(3), N)
+    one = fns[0](keys)
+    two, _, finished = _batch_reset(env)(keys)
+    assert not np.asarray(finished).any()
+    for a, b in zip(jax.tree.leaves(one), jax.tree.leaves(two), strict=True):
+        np.testing.assert_array_equal(np.asarray(a), np.asarray(b))
 
 
 def test_per_world_friction_reaches_the_c_engine(env, fns):

@@ -20,6 +20,7 @@ The pieces of a step that hold a number of the config are pure functions of the 
 from __future__ import annotations
 
 import functools
+from typing import Any
 
 import jax
 import jax.numpy as jnp
@@ -222,8 +223,13 @@ class PegHoleEnv(PegHoleBase):
 
     @functools.cached_property
     def observation_size(self) -> int:
-        out = jax.eval_shape(self.reset, jax.random.PRNGKey(0))
-        return int(out.obs.shape[-1])
+        """The length of :func:`observation`'s output for this config (traced on zeros, not
+        through ``reset``: a reset trace costs seconds)."""
+        z = jnp.zeros
+        info = {"wrench": z(6), "k_xy": z(()), "k_rot": z(()), "L_C": z(())}
+        info |= {"prev_action": z(self.action_size), "wrench_ff": z(3)}
+        out = jax.eval_shape(lambda: observation(z(3), z(3), info, self._config, 0.0, 1.0, z(3)))
+        return int(out.shape[-1])
 
     # ------------------------------------------------------------------ reset
     def _solve_start(self, hole_pos, hole_mat):
@@ -245,6 +251,15 @@ class PegHoleEnv(PegHoleBase):
 
     def reset(self, rng: jax.Array) -> State:
         """A fully re-randomised episode start (never a cached first state)."""
+        return self.reset_finish(self.reset_start(rng))
+
+    def reset_start(self, rng: jax.Array) -> dict[str, Any]:
+        """The first half of :meth:`reset`, pure JAX on every engine: the episode's draw, the
+        moved hole and the arm's joint angles with the peg inserted there (an MJX IK).
+
+        Kept apart so that a caller can compile it as its own graph: with the ``mujoco``
+        engine, a graph holding the engine's host callback is not kept in JAX's persistent
+        compilation cache, and this half is most of the reset's compile time."""
         fixed = self.fixed_compliance
         draw = self.randomization_fn(rng, self._config.randomization, fixed["k_xy"])
         yaw = draw.hole_yaw
@@ -252,7 +267,20 @@ class PegHoleEnv(PegHoleBase):
         hole_mat = rot_z(yaw)
         q = self._solve_start(hole_pos, hole_mat)
         hole_quat = jnp.array([jnp.cos(yaw / 2), 0.0, 0.0, jnp.sin(yaw / 2)])
-        data = self.engine.init_data(q, hole_pos, hole_quat)
+        return {
+            "draw": draw,
+            "q": q,
+            "hole_pos": hole_pos,
+            "hole_mat": hole_mat,
+            "hole_quat": hole_quat,
+        }
+
+    def reset_finish(self, start: dict[str, Any]) -> State:
+        """The second half of :meth:`reset`: the engine's first state at ``start``'s joint
+        angles, the commanded pose errors, the episode's info and first observation."""
+        fixed = self.fixed_compliance
+        draw, hole_pos, hole_mat = start["draw"], start["hole_pos"], start["hole_mat"]
+        data = self.engine.init_data(start["q"], hole_pos, start["hole_quat"])
         r = self.engine.readout(data)
         # commanded pose errors (hole frame): lateral offset in a disc, tilt about x and y
         cmd_tip = self._tip_world(r) + hole_mat @ draw.lateral_error

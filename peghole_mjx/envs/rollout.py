@@ -101,20 +101,44 @@ class RolloutResult:
 
 
 @functools.lru_cache(maxsize=16)
+def _batch_reset(env: PegHoleEnv) -> Callable:
+    """The start of a batch of worlds: one per env, shared by every policy run on it (the
+    baseline and the policy of an evaluation trace and load it once).
+
+    On the ``mujoco`` engine, two compiled graphs:
+    :meth:`~peghole_mjx.envs.extraction.PegHoleEnv.reset_start` (pure JAX, most of the
+    compile time, kept by the persistent compilation cache) and ``reset_finish`` (the
+    engine's first state through a host callback: JAX does not cache such a graph, so it
+    compiles in each process, but it is small). The start states are the same as from one
+    graph (tests/test_engine_mujoco.py). On MJX, one graph: split, XLA's float32 rounding at the
+    boundary moves the start states by an ulp, and the committed MJX results would not
+    reproduce bit for bit."""
+    if env.config.engine != "mujoco":
+
+        @jax.jit
+        def reset(rngs):
+            return _batch_start(jax.vmap(env.reset)(rngs))
+
+        return reset
+    start = jax.jit(jax.vmap(env.reset_start))
+    finish = jax.jit(lambda starts: _batch_start(jax.vmap(env.reset_finish)(starts)))
+    return lambda rngs: finish(start(rngs))
+
+
+def _batch_start(states):
+    """``(states, (record, returns), finished)``: a batch's carry at its reset."""
+    n = states.reward.shape[0]
+    record = {k: jnp.zeros(n) for k in EPISODE_RECORD}
+    return states, (record, zero_returns(n)), jnp.zeros(n, bool)
+
+
+@functools.lru_cache(maxsize=16)
 def make_runner(env: PegHoleEnv, policy: Callable, chunk: int, with_params: bool, gamma: float):
     """Jitted (reset, run-chunk) over a batch of worlds; finished worlds are frozen.
 
     Cached per (env, policy, chunk): a trainer that evaluates the same policy function with
-    new parameters compiles once.
+    new parameters compiles once. The reset is shared by all policies on ``env``.
     """
-
-    def reset(rngs):
-        n = rngs.shape[0]
-        states = jax.vmap(env.reset)(rngs)
-        record = {k: jnp.zeros(n) for k in EPISODE_RECORD}
-        acc = zero_returns(n)
-        finished = jnp.zeros(n, bool)
-        return states, (record, acc), finished
 
     def one_step(carry, _):
         states, (record, acc), finished, rng, params = carry
@@ -144,7 +168,7 @@ def make_runner(env: PegHoleEnv, policy: Callable, chunk: int, with_params: bool
         )
         return states, record, finished, rng
 
-    return jax.jit(reset), jax.jit(run)
+    return _batch_reset(env), jax.jit(run)
 
 
 def episode_keys(seed: int, episodes: int) -> tuple[jax.Array, jax.Array]:

@@ -137,12 +137,25 @@ def _policy_fn(network_json: str, deterministic: bool):
 
 
 def init_params(network: dict[str, Any], seed: int = 0):
-    """Fresh (normaliser, policy) parameters: the template that ``params.npz`` fills."""
-    nets = make_networks(network)
-    norm = running_statistics.init_state(
+    """Fresh (normaliser, policy) parameters."""
+    return _init_normaliser(network), make_networks(network).policy_network.init(
+        jax.random.PRNGKey(seed)
+    )
+
+
+def params_template(network: dict[str, Any]):
+    """The template that ``params.npz`` fills: :func:`init_params`'s tree, shapes and dtypes,
+    with the network's weights as zeros (traced, not run: loading a policy compiles nothing
+    before its rollout)."""
+    init = make_networks(network).policy_network.init
+    shapes = jax.eval_shape(init, jax.random.PRNGKey(0))
+    return _init_normaliser(network), jax.tree.map(lambda s: np.zeros(s.shape, s.dtype), shapes)
+
+
+def _init_normaliser(network: dict[str, Any]):
+    return running_statistics.init_state(
         specs.Array((int(network["observation_size"]),), jnp.dtype("float32"))
     )
-    return norm, nets.policy_network.init(jax.random.PRNGKey(seed))
 
 
 def save_policy(path: str | Path, params, meta: dict[str, Any], atomic: bool = True) -> Path:
@@ -299,7 +312,7 @@ def load_policy(name: str | Path) -> PolicyBundle:
     """
     path = resolve_policy_path(name)
     meta, arrays = _read(path)
-    treedef = jax.tree.structure(init_params(meta["network"]))
+    treedef = jax.tree.structure(params_template(meta["network"]))
     params = jax.tree.unflatten(treedef, [jnp.asarray(x) for x in arrays.values()])
     return PolicyBundle(path=path, meta=meta, params=params)
 
@@ -314,7 +327,7 @@ def _read(path: Path) -> tuple[dict[str, Any], dict[str, np.ndarray]]:
     except (ValueError, UnicodeDecodeError) as exc:
         raise CorruptFileError(f"{path}/policy.json is not valid JSON ({exc})") from None
     check_meta(meta, f"{path}/policy.json")
-    want = named_leaves(init_params(meta["network"]))
+    want = named_leaves(params_template(meta["network"]))
     try:
         with np.load(path / "params.npz", allow_pickle=False) as z:
             arrays = {n: z[n] for n in z.files}
