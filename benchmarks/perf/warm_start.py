@@ -38,8 +38,9 @@ from peghole_mjx.provenance import provenance
 FIRST_BATCH = b"policy rollout: "
 
 
-def time_run(argv: list[str], env: dict[str, str]) -> dict:
-    """Run ``argv`` and time its stderr: first rollout bar, longest silence, wall, status."""
+def time_run(argv: list[str], env: dict[str, str], echo: bool = False) -> dict:
+    """Run ``argv`` and time its stderr: first rollout bar, longest silence, wall, status.
+    ``echo``: pass the child's stderr (its labelled phases and bars) through to ours."""
     t0 = time.perf_counter()
     proc = subprocess.Popen(argv, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, env=env)
     assert proc.stderr is not None
@@ -47,6 +48,9 @@ def time_run(argv: list[str], env: dict[str, str]) -> dict:
     while chunk := os.read(proc.stderr.fileno(), 65536):
         now = time.perf_counter()
         silence, last = max(silence, now - last), now
+        if echo:
+            sys.stderr.buffer.write(chunk)
+            sys.stderr.flush()
         seen = (seen + chunk)[-4096:]
         if first is None and FIRST_BATCH in seen:
             first = now - t0
@@ -87,7 +91,8 @@ def main(argv: list[str] | None = None) -> int:
         for i in range(args.runs):
             print(f"run {i + 1}/{args.runs}: {' '.join(cmd)}", file=sys.stderr, flush=True)
             exe = [shutil.which("peghole") or "peghole", *cmd[1:], "--out", str(work / str(i))]
-            row = {"run": i + 1, "cache": "empty" if i == 0 else "filled", **time_run(exe, env)}
+            timed = time_run(exe, env, echo=True)
+            row = {"run": i + 1, "cache": "empty" if i == 0 else "filled", **timed}
             print(f"  {row}", file=sys.stderr, flush=True)
             runs.append(row)
     finally:

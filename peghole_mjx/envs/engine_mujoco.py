@@ -92,6 +92,9 @@ class MujocoEngine:
     """MuJoCo C on a ``mujoco.batch`` thread pool, behind ``jax.pure_callback``."""
 
     name = "mujoco"
+    #: the step and reset call the host (``jax.pure_callback``): JAX 0.10.2 does not keep a
+    #: graph holding one in its persistent compilation cache
+    host_callbacks = True
 
     def __init__(
         self,

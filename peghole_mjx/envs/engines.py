@@ -125,6 +125,8 @@ class MjxEngine:
     """MuJoCo MJX (``impl`` jax or warp): the state is an ``mjx.Data``, everything is JAX."""
 
     name = "mjx"
+    #: the step and reset are plain JAX: JAX's persistent compilation cache keeps their graphs
+    host_callbacks = False
 
     def __init__(
         self,

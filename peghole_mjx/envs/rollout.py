@@ -105,7 +105,7 @@ def _batch_reset(env: PegHoleEnv) -> Callable:
     """The start of a batch of worlds: one per env, shared by every policy run on it (the
     baseline and the policy of an evaluation trace and load it once).
 
-    On the ``mujoco`` engine, two compiled graphs:
+    On an engine with host callbacks (the ``mujoco`` engine), two compiled graphs:
     :meth:`~peghole_mjx.envs.extraction.PegHoleEnv.reset_start` (pure JAX, most of the
     compile time, kept by the persistent compilation cache) and ``reset_finish`` (the
     engine's first state through a host callback: JAX does not cache such a graph, so it
@@ -113,7 +113,7 @@ def _batch_reset(env: PegHoleEnv) -> Callable:
     graph (tests/test_engine_mujoco.py). On MJX, one graph: split, XLA's float32 rounding at the
     boundary moves the start states by an ulp, and the committed MJX results would not
     reproduce bit for bit."""
-    if env.config.engine != "mujoco":
+    if not env.engine.host_callbacks:
 
         @jax.jit
         def reset(rngs):
