@@ -19,6 +19,8 @@ os.environ.setdefault("JAX_PERSISTENT_CACHE_MIN_COMPILE_TIME_SECS", "0.5")
 # load an entry another process is still writing
 os.environ.setdefault("JAX_COMPILATION_CACHE_MAX_SIZE", str(16 << 30))
 
+import ctypes
+import ctypes.util
 import gc
 
 import jax
@@ -36,7 +38,27 @@ def _release_compiled_code():
     the next executable load crashed the process (SIGSEGV in CI, SIGABRT here, 2026-12-02;
     test_training.py alone reaches 30,000 maps and 6.3 GB). A graph that a later module needs
     loads again from the persistent cache.
+
+    Then glibc's ``malloc_trim`` hands the freed heap back to the system: without it the
+    worker's resident memory only grows, module after module (measured 2026-12-02: an MJX
+    rollout's process at 1.07 GB after ``jax.clear_caches``, 0.42 GB after the trim).
     """
     yield
     jax.clear_caches()
     gc.collect()
+    if _LIBC is not None:
+        _LIBC.malloc_trim(0)
+
+
+def _glibc():
+    """glibc through ctypes, or None on a system without ``malloc_trim`` (musl, macOS)."""
+    name = ctypes.util.find_library("c")
+    try:
+        libc = ctypes.CDLL(name)
+        libc.malloc_trim  # noqa: B018 - the attribute lookup is the check
+    except (OSError, AttributeError, TypeError):
+        return None
+    return libc
+
+
+_LIBC = _glibc()

@@ -1,6 +1,8 @@
 """``make_train(env, cfg) -> train(key)`` and the multi-seed driver (``peghole train --seeds``).
 
-One tiny config; the vmapped two-seed run is compiled once (module fixture) and reused."""
+One tiny config on the ``mujoco`` engine (the CPU default of ``peghole train``; the pure train
+and the seeds driver are the same code on either engine); the vmapped two-seed run is compiled
+once (module fixture) and reused."""
 
 from __future__ import annotations
 
@@ -25,6 +27,7 @@ TINY = {
     "max_replay_size": 2000,
     "num_timesteps": 80,
     "env.episode_length": 25,
+    "env.engine": "mujoco",
 }
 
 

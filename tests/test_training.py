@@ -1,7 +1,10 @@
 """Brax SAC training: learning, full resets, checkpoint fidelity, kill -9 and resume, evaluate.
 
 All tests share one tiny configuration (8 worlds, 25-step episodes), so the graphs are
-compiled once per session (and cached on disk for the subprocesses).
+compiled once per session (and cached on disk for the subprocesses). The worlds run on the
+``mujoco`` engine, the CPU default of ``peghole train``: what is tested here (learning, resets,
+checkpoints, resume, evaluation) is the driver's, the same on either engine. Training through
+the MJX engine is tested in test_distributed.py.
 """
 
 from __future__ import annotations
@@ -32,6 +35,7 @@ TINY = {
     "min_replay_size": 80,
     "max_replay_size": 20000,
     "env.episode_length": 25,
+    "env.engine": "mujoco",
 }
 LEARN_STEPS = 4000
 
