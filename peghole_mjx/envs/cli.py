@@ -3,16 +3,25 @@
 from __future__ import annotations
 
 import argparse
+import json
 import sys
+from pathlib import Path
 
-from peghole_mjx import envs, policies
+from peghole_mjx import envs, fileio, policies
 from peghole_mjx import progress as prog
+from peghole_mjx.envs import contacts as contacts_mod
 from peghole_mjx.envs import rollout as rollout_mod
 from peghole_mjx.envs.engines import CLI_ENGINES, engine_overrides
 from peghole_mjx.errors import UserInputError
 from peghole_mjx.geometry.specs import get_preset
 from peghole_mjx.training.evaluate import config_differences
 from peghole_mjx.validation import arg, dumps, key_value
+
+#: ``--policy`` of the envs subcommands
+POLICY_HELP = (
+    f"scripted | random | a policy: pretrained name ({', '.join(policies.PRETRAINED)}), "
+    "policy or run directory"
+)
 
 
 def add_parser(sub: argparse._SubParsersAction) -> None:
@@ -27,12 +36,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
         "the thesis's Ch 2-3 method (fixed compliance at the peg tip, straight pull).",
     )
     r.add_argument("--env", required=True, choices=envs.ALL_ENVS)
-    r.add_argument(
-        "--policy",
-        default="scripted",
-        help=f"scripted | random | a policy: pretrained name ({', '.join(policies.PRETRAINED)}), "
-        "policy or run directory",
-    )
+    r.add_argument("--policy", default="scripted", help=POLICY_HELP)
     r.add_argument(
         "--engine",
         choices=CLI_ENGINES,
@@ -56,6 +60,24 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     r.add_argument("--json", action="store_true", help="print one JSON object")
     r.set_defaults(func=cmd_rollout)
 
+    c = esub.add_parser(
+        "contacts",
+        help="record where and how hard the peg touches the hole in one episode",
+        description="Runs one randomised episode (one world) and, after every env step, lists "
+        "each active peg-hole contact: its point on the peg (mm, tip frame), its normal force "
+        "and the hole geom touched. Writes contacts.csv, contacts.png (the points on the peg "
+        "and the force on each wall over time) and summary.json to --out.",
+    )
+    c.add_argument("--env", required=True, choices=envs.ALL_ENVS)
+    c.add_argument("--policy", default="scripted", help=POLICY_HELP)
+    c.add_argument("--engine", choices=CLI_ENGINES, default=None, help="as for envs rollout")
+    c.add_argument("--seed", type=arg("seed"), default=0, help="the episode's reset seed")
+    c.add_argument(
+        "--set", dest="overrides", type=key_value, action="append", default=[], metavar="K=V"
+    )
+    c.add_argument("--out", type=Path, required=True, help="output folder (created)")
+    c.set_defaults(func=cmd_contacts, preset=None)
+
 
 def make_policy(env, name: str):
     """``scripted`` or ``random`` -> ``policy(obs, rng) -> action``."""
@@ -64,7 +86,9 @@ def make_policy(env, name: str):
     return rollout_mod.random_policy(env)
 
 
-def cmd_rollout(args: argparse.Namespace) -> int:
+def _env_and_policy(args: argparse.Namespace, quiet: bool = False):
+    """``(env, policy, params)`` of ``--env``, ``--policy``, ``--engine``, ``--preset`` and
+    ``--set`` (``params`` None for scripted and random)."""
     overrides = dict(args.overrides)
     if args.preset:
         kind = get_preset(envs.get_default_config(args.env).preset).kind
@@ -79,7 +103,7 @@ def cmd_rollout(args: argparse.Namespace) -> int:
         if bundle.env_name != args.env:
             raise UserInputError(f"policy {args.policy} was trained on {bundle.env_name}")
     try:
-        with prog.phase(f"building the {args.env} env", enabled=not args.json):
+        with prog.phase(f"building the {args.env} env", enabled=not quiet):
             if bundle is not None:  # the env exactly as trained (plus --set)
                 env = bundle.make_env(overrides)
             else:
@@ -96,6 +120,11 @@ def cmd_rollout(args: argparse.Namespace) -> int:
         policy, params = bundle.policy_fn(), bundle.params
     else:
         policy = make_policy(env, args.policy)
+    return env, policy, params
+
+
+def cmd_rollout(args: argparse.Namespace) -> int:
+    env, policy, params = _env_and_policy(args, quiet=args.json)
     res = rollout_mod.rollout(
         env,
         policy,
@@ -134,4 +163,22 @@ def cmd_rollout(args: argparse.Namespace) -> int:
             f"{timing['physics_steps_per_s']} physics steps/s",
             file=sys.stdout,
         )
+    return 0
+
+
+def cmd_contacts(args: argparse.Namespace) -> int:
+    env, policy, params = _env_and_policy(args)
+    if params is not None:
+        learned = policy
+        policy = lambda obs, rng: learned(params, obs, rng)  # noqa: E731
+    fileio.check_out_dir(args.out)
+    trace = contacts_mod.record_contacts(env, policy, seed=args.seed)
+    trace.write_csv(args.out / "contacts.csv")
+    title = f"{args.env} ({env.config.preset}), policy {args.policy}, seed {args.seed}"
+    contacts_mod.plot_contacts(trace, args.out / "contacts.png", title)
+    summary = {"env": args.env, "policy": args.policy, "seed": args.seed, **trace.summary()}
+    summary["engine"] = env.config.engine
+    fileio.write_text(args.out / "summary.json", json.dumps(summary, indent=2) + "\n")
+    print(dumps(summary))
+    print(f"wrote {args.out}/contacts.csv, contacts.png, summary.json", file=sys.stderr)
     return 0

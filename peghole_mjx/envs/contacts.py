@@ -1,0 +1,203 @@
+"""Where and how hard the peg touches the hole: one episode's contacts, env step by env step.
+
+The thesis infers its contact states (Ch 2-3: one- and two-point contact, jamming) from the
+F/T wrench and names watching the contact points directly as future work (Ch 5.3, a
+transparent fixture). The simulator shows them. :func:`record_contacts` runs one world of an
+env with a policy and, after every env step, writes the state into a MuJoCo ``MjData`` (on
+either engine, as the renderer does) and lists every active contact (distance <= 0) between a
+peg geom and a hole geom:
+
+* its point in the peg's frame, in mm: origin at the peg tip, axes of the peg body, whose z
+  axis runs along the peg and out of its tip (a point on the peg's side has z < 0: its
+  distance from the tip, negative);
+* its normal force, N (``mujoco.mj_contactForce``: the contact frame's first component);
+* the hole geom it touches (a wall of the hole: its name in the scene).
+
+Sampled once per env step, at the end of the step's last physics substep, not per substep.
+:func:`plot_contacts` draws the points on the peg (two side views, coloured by force) and the
+normal force on each hole geom over the episode. ``peghole envs contacts`` runs both.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import jax
+import matplotlib.pyplot as plt
+import mujoco
+import numpy as np
+
+from peghole_mjx import fileio
+from peghole_mjx import progress as prog
+from peghole_mjx.envs import iiwa_constants as names
+from peghole_mjx.envs.extraction import PegHoleEnv
+from peghole_mjx.geometry.specs import MM
+
+#: the columns of :attr:`ContactTrace.rows` (one row per active peg-hole contact and env step)
+COLUMNS = ("step", "time_s", "x_mm", "y_mm", "z_mm", "normal_N", "hole_geom")
+
+
+@dataclass
+class ContactTrace:
+    """One episode's peg-hole contacts (:data:`COLUMNS`) and how the episode ended."""
+
+    rows: list[tuple]
+    steps: int
+    ctrl_dt: float
+    success: bool
+    depth_mm: list[float]
+
+    def column(self, name: str) -> np.ndarray:
+        i = COLUMNS.index(name)
+        return np.array([r[i] for r in self.rows])
+
+    def summary(self) -> dict[str, Any]:
+        """Counts, the most contacts at one step, the largest normal force, per hole geom."""
+        per_step: dict[int, int] = {}
+        for r in self.rows:
+            per_step[r[0]] = per_step.get(r[0], 0) + 1
+        geoms = sorted({r[6] for r in self.rows})
+        return {
+            "env_steps": self.steps,
+            "success": self.success,
+            "contact_rows": len(self.rows),
+            "steps_in_contact": len(per_step),
+            "most_contacts_at_one_step": max(per_step.values(), default=0),
+            "max_normal_N": round(float(self.column("normal_N").max()), 3) if self.rows else 0.0,
+            "hole_geoms_touched": geoms,
+        }
+
+    def write_csv(self, path: Path) -> None:
+        """:data:`COLUMNS`, one row per contact (written atomically)."""
+        lines = [",".join(COLUMNS)]
+        for r in self.rows:
+            lines.append(f"{r[0]},{r[1]:.4f},{r[2]:.4f},{r[3]:.4f},{r[4]:.4f},{r[5]:.5f},{r[6]}")
+        fileio.write_text(path, "\n".join(lines) + "\n")
+
+
+def _subtree_geoms(m: mujoco.MjModel, root: int) -> set[int]:
+    """The geoms of body ``root`` and of every body below it."""
+    bodies = set()
+    for b in range(m.nbody):
+        a = b
+        while a != 0 and a != root:
+            a = int(m.body_parentid[a])
+        if a == root:
+            bodies.add(b)
+    return {g for g in range(m.ngeom) if int(m.geom_bodyid[g]) in bodies}
+
+
+def contacts_now(m: mujoco.MjModel, d: mujoco.MjData, peg: set[int], hole: set[int]):
+    """``[(x_mm, y_mm, z_mm, normal_N, hole_geom_name)]`` of the active peg-hole contacts of
+    ``d`` (forward done), points in the peg tip's frame (module doc)."""
+    peg_body = m.body(names.PEG_BODY).id
+    R = d.xmat[peg_body].reshape(3, 3)
+    tip = d.site_xpos[m.site(names.PEG_TIP_SITE).id]
+    force = np.zeros(6)
+    out = []
+    for i in range(d.ncon):
+        c = d.contact[i]
+        if c.dist > 0.0:
+            continue
+        g1, g2 = int(c.geom1), int(c.geom2)
+        if g1 in peg and g2 in hole:
+            other = g2
+        elif g2 in peg and g1 in hole:
+            other = g1
+        else:
+            continue
+        mujoco.mj_contactForce(m, d, i, force)
+        p = R.T @ (np.asarray(c.pos) - tip) / MM
+        name = mujoco.mj_id2name(m, mujoco.mjtObj.mjOBJ_GEOM, other) or f"geom{other}"
+        out.append((float(p[0]), float(p[1]), float(p[2]), float(force[0]), name))
+    return out
+
+
+def record_contacts(
+    env: PegHoleEnv,
+    act: Callable[[jax.Array, jax.Array], jax.Array],
+    seed: int = 0,
+    max_steps: int | None = None,
+    progress: bool = True,
+) -> ContactTrace:
+    """Run one world from the reset of ``seed`` with ``act(obs, rng) -> action`` until done
+    (or ``max_steps``) and list its peg-hole contacts after every env step."""
+    m = env.mj_model
+    peg = _subtree_geoms(m, m.body(names.PEG_BODY).id)
+    hole = _subtree_geoms(m, m.body(names.HOLE_BODY).id)
+    d = mujoco.MjData(m)
+    reset, step, act_j = jax.jit(env.reset), jax.jit(env.step), jax.jit(act)
+    key = jax.random.PRNGKey(seed + 1)
+    with prog.compiling(f"the {env.env_name} step for the contact record", enabled=progress):
+        state = reset(jax.random.PRNGKey(seed))
+        jax.block_until_ready(step(state, act_j(state.obs, key)))
+    n = max_steps or env.config.episode_length
+    rows: list[tuple] = []
+    depth: list[float] = []
+    bar = prog.bar(n, "contact record", unit="step", enabled=progress)
+    t = 0
+    try:
+        while t < n:
+            key, sub = jax.random.split(key)
+            state = step(state, act_j(state.obs, sub))
+            t += 1
+            env.engine.to_mjdata(state.data, m, d)
+            for c in contacts_now(m, d, peg, hole):
+                rows.append((t, t * env.config.ctrl_dt, *c))
+            depth.append(float(state.info["depth_mm"]))
+            bar.update()
+            if float(state.done) > 0:
+                break
+    finally:
+        bar.close()
+    return ContactTrace(
+        rows=rows,
+        steps=t,
+        ctrl_dt=env.config.ctrl_dt,
+        success=bool(float(state.metrics["success"]) > 0),
+        depth_mm=depth,
+    )
+
+
+def plot_contacts(trace: ContactTrace, path: Path, title: str = "") -> Path:
+    """Three panels: the contact points on the peg (x-z and y-z side views, colour = normal
+    force) and the summed normal force on each hole geom over the episode."""
+    fig, axes = plt.subplots(1, 3, figsize=(13, 4.2))
+    if trace.rows:
+        x, y, z = (trace.column(k) for k in ("x_mm", "y_mm", "z_mm"))
+        f = trace.column("normal_N")
+        for ax, h, lab in ((axes[0], x, "x"), (axes[1], y, "y")):
+            sc = ax.scatter(h, z, c=f, s=10, cmap="viridis")
+            ax.set_xlabel(f"{lab} on the peg (mm)")
+            ax.set_ylabel("z from the tip (mm)")
+            ax.set_aspect("equal", adjustable="datalim")
+        fig.colorbar(sc, ax=axes[1], label="normal force (N)")
+        steps, geoms = trace.column("step"), trace.column("hole_geom")
+        t = np.arange(1, trace.steps + 1) * trace.ctrl_dt
+        per = {}
+        for g in set(geoms):
+            per[g] = np.zeros(trace.steps)
+            np.add.at(per[g], steps[geoms == g].astype(int) - 1, f[geoms == g])
+        # the six geoms carrying the most force named, the rest in grey
+        ranked = sorted(per, key=lambda g: -per[g].sum())
+        for g in reversed(ranked):
+            named = g in ranked[:6]
+            axes[2].plot(t, per[g], lw=1, label=g if named else None, c=None if named else "0.8")
+        axes[2].legend(fontsize=7)
+    else:
+        axes[1].text(0.5, 0.5, "no peg-hole contact", ha="center", transform=axes[1].transAxes)
+    axes[0].set_title("contact points, side view x-z")
+    axes[1].set_title("contact points, side view y-z")
+    axes[2].set_title("normal force per hole geom")
+    axes[2].set_xlabel("time (s)")
+    axes[2].set_ylabel("N")
+    if title:
+        fig.suptitle(title)
+    fig.tight_layout()
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+    return path
