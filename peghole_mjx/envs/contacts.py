@@ -10,10 +10,17 @@ peg geom and a hole geom:
 * its point in the peg's frame, in mm: origin at the peg tip, axes of the peg body, whose z
   axis runs along the peg and out of its tip (a point on the peg's side has z < 0: its
   distance from the tip, negative);
+* its normal, a unit vector in the peg's frame pointing from the wall into the peg;
 * its normal force, N (``mujoco.mj_contactForce``: the contact frame's first component);
 * the hole geom it touches (a wall of the hole: its name in the scene).
 
 Sampled once per env step, at the end of the step's last physics substep, not per substep.
+
+A step is in **two-point contact** (the thesis's state in which jamming happens, Ch 2-3: the
+tilted peg pressed against opposite walls, one contact near its tip and one at the hole's
+mouth) when two loaded contacts have opposite normals (``n1 . n2 < -0.9``) and lie at least
+:data:`TWO_POINT_DZ_MM` apart along the peg (:func:`two_point_steps`). Contacts on opposite
+walls at the same height (the peg squeezed, not tilted) are not counted.
 :func:`plot_contacts` draws the points on the peg (two side views, coloured by force) and the
 normal force on each hole geom over the episode. ``peghole envs contacts`` runs both.
 """
@@ -37,7 +44,9 @@ from peghole_mjx.envs.extraction import PegHoleEnv
 from peghole_mjx.geometry.specs import MM
 
 #: the columns of :attr:`ContactTrace.rows` (one row per active peg-hole contact and env step)
-COLUMNS = ("step", "time_s", "x_mm", "y_mm", "z_mm", "normal_N", "hole_geom")
+COLUMNS = ("step", "time_s", "x_mm", "y_mm", "z_mm", "nx", "ny", "nz", "normal_N", "hole_geom")
+#: two contacts this far apart along the peg (mm), with opposite normals: two-point contact
+TWO_POINT_DZ_MM = 1.0
 
 
 @dataclass
@@ -59,7 +68,7 @@ class ContactTrace:
         per_step: dict[int, int] = {}
         for r in self.rows:
             per_step[r[0]] = per_step.get(r[0], 0) + 1
-        geoms = sorted({r[6] for r in self.rows})
+        geoms = sorted({r[-1] for r in self.rows})
         return {
             "env_steps": self.steps,
             "success": self.success,
@@ -67,6 +76,7 @@ class ContactTrace:
             "steps_in_contact": len(per_step),
             "most_contacts_at_one_step": max(per_step.values(), default=0),
             "max_normal_N": round(float(self.column("normal_N").max()), 3) if self.rows else 0.0,
+            "two_point_steps": len(two_point_steps(self.rows)),
             "hole_geoms_touched": geoms,
         }
 
@@ -74,7 +84,8 @@ class ContactTrace:
         """:data:`COLUMNS`, one row per contact (written atomically)."""
         lines = [",".join(COLUMNS)]
         for r in self.rows:
-            lines.append(f"{r[0]},{r[1]:.4f},{r[2]:.4f},{r[3]:.4f},{r[4]:.4f},{r[5]:.5f},{r[6]}")
+            nums = ",".join(f"{v:.5f}" for v in r[1:-1])
+            lines.append(f"{r[0]},{nums},{r[-1]}")
         fileio.write_text(path, "\n".join(lines) + "\n")
 
 
@@ -91,8 +102,8 @@ def _subtree_geoms(m: mujoco.MjModel, root: int) -> set[int]:
 
 
 def contacts_now(m: mujoco.MjModel, d: mujoco.MjData, peg: set[int], hole: set[int]):
-    """``[(x_mm, y_mm, z_mm, normal_N, hole_geom_name)]`` of the active peg-hole contacts of
-    ``d`` (forward done), points in the peg tip's frame (module doc)."""
+    """``[(x_mm, y_mm, z_mm, nx, ny, nz, normal_N, hole_geom_name)]`` of the active peg-hole
+    contacts of ``d`` (forward done), in the peg tip's frame (module doc)."""
     peg_body = m.body(names.PEG_BODY).id
     R = d.xmat[peg_body].reshape(3, 3)
     tip = d.site_xpos[m.site(names.PEG_TIP_SITE).id]
@@ -103,16 +114,36 @@ def contacts_now(m: mujoco.MjModel, d: mujoco.MjData, peg: set[int], hole: set[i
         if c.dist > 0.0:
             continue
         g1, g2 = int(c.geom1), int(c.geom2)
+        # MuJoCo's contact normal points from geom1 to geom2: turned to point into the peg
         if g1 in peg and g2 in hole:
-            other = g2
+            other, sign = g2, -1.0
         elif g2 in peg and g1 in hole:
-            other = g1
+            other, sign = g1, 1.0
         else:
             continue
         mujoco.mj_contactForce(m, d, i, force)
         p = R.T @ (np.asarray(c.pos) - tip) / MM
+        n = sign * (R.T @ np.asarray(c.frame[:3]))
         name = mujoco.mj_id2name(m, mujoco.mjtObj.mjOBJ_GEOM, other) or f"geom{other}"
-        out.append((float(p[0]), float(p[1]), float(p[2]), float(force[0]), name))
+        out.append((*(float(v) for v in p), *(float(v) for v in n), float(force[0]), name))
+    return out
+
+
+def two_point_steps(rows: list[tuple], min_force_N: float = 1e-6) -> set[int]:
+    """The steps of ``rows`` (:data:`COLUMNS`) in two-point contact (module doc): two contacts
+    carrying force with opposite normals, at least :data:`TWO_POINT_DZ_MM` apart along z."""
+    by_step: dict[int, list[tuple]] = {}
+    for r in rows:
+        if r[8] > min_force_N:
+            by_step.setdefault(r[0], []).append(r)
+    out = set()
+    for step, cs in by_step.items():
+        n = np.array([c[5:8] for c in cs])
+        z = np.array([c[4] for c in cs])
+        opposite = (n @ n.T) < -0.9
+        apart = np.abs(z[:, None] - z[None, :]) >= TWO_POINT_DZ_MM
+        if np.any(opposite & apart):
+            out.add(step)
     return out
 
 
@@ -164,7 +195,8 @@ def record_contacts(
 
 def plot_contacts(trace: ContactTrace, path: Path, title: str = "") -> Path:
     """Three panels: the contact points on the peg (x-z and y-z side views, colour = normal
-    force) and the summed normal force on each hole geom over the episode."""
+    force) and the summed normal force on each hole geom over the episode, the steps in
+    two-point contact marked in red."""
     fig, axes = plt.subplots(1, 3, figsize=(13, 4.2))
     if trace.rows:
         x, y, z = (trace.column(k) for k in ("x_mm", "y_mm", "z_mm"))
@@ -186,6 +218,16 @@ def plot_contacts(trace: ContactTrace, path: Path, title: str = "") -> Path:
         for g in reversed(ranked):
             named = g in ranked[:6]
             axes[2].plot(t, per[g], lw=1, label=g if named else None, c=None if named else "0.8")
+        two = sorted(two_point_steps(trace.rows))
+        if two:
+            axes[2].plot(
+                t[np.asarray(two) - 1],
+                np.zeros(len(two)),
+                "|",
+                c="red",
+                ms=12,
+                label="two-point contact",
+            )
         axes[2].legend(fontsize=7)
     else:
         axes[1].text(0.5, 0.5, "no peg-hole contact", ha="center", transform=axes[1].transAxes)
