@@ -35,9 +35,30 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
         "and peak |F_z|, mean |F_xy|, plus compile time and steps/s. The scripted policy is "
         "the thesis's Ch 2-3 method (fixed compliance at the peg tip, straight pull).",
     )
-    r.add_argument("--env", required=True, choices=envs.ALL_ENVS)
-    r.add_argument("--policy", default="scripted", help=POLICY_HELP)
-    r.add_argument(
+    _env_arguments(r)
+    r.add_argument("--episodes", type=arg("episodes"), default=64)
+    r.add_argument("--json", action="store_true", help="print one JSON object")
+    r.set_defaults(func=cmd_rollout)
+
+    c = esub.add_parser(
+        "contacts",
+        help="record where and how hard the peg touches the hole in one episode",
+        description="Runs one randomised episode (one world) and, after every env step, lists "
+        "each active peg-hole contact: its point on the peg (mm, tip frame), its normal, its "
+        "normal force and the hole geom touched, and which steps are in two-point contact. "
+        "Writes contacts.csv, contacts.png (the points on the peg and the force on each wall "
+        "over time) and summary.json to --out.",
+    )
+    _env_arguments(c)
+    c.add_argument("--out", type=Path, required=True, help="output folder (created)")
+    c.set_defaults(func=cmd_contacts)
+
+
+def _env_arguments(q: argparse.ArgumentParser) -> None:
+    """The options that choose the env, its config and the policy (every envs subcommand)."""
+    q.add_argument("--env", required=True, choices=envs.ALL_ENVS)
+    q.add_argument("--policy", default="scripted", help=POLICY_HELP)
+    q.add_argument(
         "--engine",
         choices=CLI_ENGINES,
         default=None,
@@ -45,10 +66,9 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
         "mujoco.batch threads), auto (mujoco without a GPU, else mjx). Default: auto for "
         "scripted/random, the policy's own engine for a policy",
     )
-    r.add_argument("--episodes", type=arg("episodes"), default=64)
-    r.add_argument("--seed", type=arg("seed"), default=0)
-    r.add_argument("--preset", help="override the env's preset (same geometry kind)")
-    r.add_argument(
+    q.add_argument("--seed", type=arg("seed"), default=0, help="the episodes' reset seed")
+    q.add_argument("--preset", help="override the env's preset (same geometry kind)")
+    q.add_argument(
         "--set",
         dest="overrides",
         type=key_value,
@@ -57,26 +77,6 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
         metavar="KEY=VALUE",
         help="config override, e.g. --set randomization.angular_error_deg=0.3",
     )
-    r.add_argument("--json", action="store_true", help="print one JSON object")
-    r.set_defaults(func=cmd_rollout)
-
-    c = esub.add_parser(
-        "contacts",
-        help="record where and how hard the peg touches the hole in one episode",
-        description="Runs one randomised episode (one world) and, after every env step, lists "
-        "each active peg-hole contact: its point on the peg (mm, tip frame), its normal force "
-        "and the hole geom touched. Writes contacts.csv, contacts.png (the points on the peg "
-        "and the force on each wall over time) and summary.json to --out.",
-    )
-    c.add_argument("--env", required=True, choices=envs.ALL_ENVS)
-    c.add_argument("--policy", default="scripted", help=POLICY_HELP)
-    c.add_argument("--engine", choices=CLI_ENGINES, default=None, help="as for envs rollout")
-    c.add_argument("--seed", type=arg("seed"), default=0, help="the episode's reset seed")
-    c.add_argument(
-        "--set", dest="overrides", type=key_value, action="append", default=[], metavar="K=V"
-    )
-    c.add_argument("--out", type=Path, required=True, help="output folder (created)")
-    c.set_defaults(func=cmd_contacts, preset=None)
 
 
 def make_policy(env, name: str):
