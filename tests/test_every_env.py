@@ -33,11 +33,9 @@ from peghole_mjx.training.config import load_train_config
 from peghole_mjx.training.evaluate import requested_config
 from peghole_mjx.validation import loads
 
-
-@pytest.fixture(autouse=True)
-def _one_env_at_a_time(release_after):
-    """Each env's commands compile their own graphs: they are dropped when its test ends (kept
-    for the module, the four envs' graphs held 2.8 GB in one worker, 2026-12-02)."""
+#: each env's commands compile their own graphs: dropped when its test ends (kept for the
+#: module, the four envs' graphs held 2.8 GB in one worker, 2026-12-02)
+pytestmark = pytest.mark.usefixtures("release_after")
 
 
 #: the smallest training run: one call of 2 envs x 5 steps after a 10-transition prefill, one

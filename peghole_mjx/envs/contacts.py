@@ -3,9 +3,9 @@
 The thesis infers its contact states (Ch 2-3: one- and two-point contact, jamming) from the
 F/T wrench and names watching the contact points directly as future work (Ch 5.3, a
 transparent fixture). The simulator shows them. :func:`record_contacts` runs one world of an
-env with a policy and, after every env step, writes the state into a MuJoCo ``MjData`` (on
-either engine, as the renderer does) and lists every active contact (distance <= 0) between a
-peg geom and a hole geom:
+env with a policy and, after every env step, writes the state into a MuJoCo ``MjData`` (the
+engine's ``to_mjdata``, as the renderer does) and lists every active contact (distance
+<= 0) between a peg geom and a hole geom:
 
 * its point in the peg's frame, in mm: origin at the peg tip, axes of the peg body, whose z
   axis runs along the peg and out of its tip (a point on the peg's side has z < 0: its
@@ -27,6 +27,7 @@ normal force on each hole geom over the episode. ``peghole envs contacts`` runs 
 
 from __future__ import annotations
 
+from collections import Counter
 from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
@@ -57,7 +58,6 @@ class ContactTrace:
     steps: int
     ctrl_dt: float
     success: bool
-    depth_mm: list[float]
 
     def column(self, name: str) -> np.ndarray:
         i = COLUMNS.index(name)
@@ -65,9 +65,7 @@ class ContactTrace:
 
     def summary(self) -> dict[str, Any]:
         """Counts, the most contacts at one step, the largest normal force, per hole geom."""
-        per_step: dict[int, int] = {}
-        for r in self.rows:
-            per_step[r[0]] = per_step.get(r[0], 0) + 1
+        per_step = Counter(r[0] for r in self.rows)
         geoms = sorted({r[-1] for r in self.rows})
         return {
             "env_steps": self.steps,
@@ -89,16 +87,10 @@ class ContactTrace:
         fileio.write_text(path, "\n".join(lines) + "\n")
 
 
-def _subtree_geoms(m: mujoco.MjModel, root: int) -> set[int]:
-    """The geoms of body ``root`` and of every body below it."""
-    bodies = set()
-    for b in range(m.nbody):
-        a = b
-        while a != 0 and a != root:
-            a = int(m.body_parentid[a])
-        if a == root:
-            bodies.add(b)
-    return {g for g in range(m.ngeom) if int(m.geom_bodyid[g]) in bodies}
+def _body_geoms(m: mujoco.MjModel, body: str) -> set[int]:
+    """The geoms of ``body`` (the scenes hold the peg's and the hole's pieces on one body each,
+    as :mod:`peghole_mjx.experiments.compliance` also reads them)."""
+    return set(np.flatnonzero(m.geom_bodyid == m.body(body).id).tolist())
 
 
 def contacts_now(m: mujoco.MjModel, d: mujoco.MjData, peg: set[int], hole: set[int]):
@@ -157,8 +149,7 @@ def record_contacts(
     """Run one world from the reset of ``seed`` with ``act(obs, rng) -> action`` until done
     (or ``max_steps``) and list its peg-hole contacts after every env step."""
     m = env.mj_model
-    peg = _subtree_geoms(m, m.body(names.PEG_BODY).id)
-    hole = _subtree_geoms(m, m.body(names.HOLE_BODY).id)
+    peg, hole = _body_geoms(m, names.PEG_BODY), _body_geoms(m, names.HOLE_BODY)
     d = mujoco.MjData(m)
     reset, step, act_j = jax.jit(env.reset), jax.jit(env.step), jax.jit(act)
     key = jax.random.PRNGKey(seed + 1)
@@ -167,7 +158,6 @@ def record_contacts(
         jax.block_until_ready(step(state, act_j(state.obs, key)))
     n = max_steps or env.config.episode_length
     rows: list[tuple] = []
-    depth: list[float] = []
     bar = prog.bar(n, "contact record", unit="step", enabled=progress)
     t = 0
     try:
@@ -178,7 +168,6 @@ def record_contacts(
             env.engine.to_mjdata(state.data, m, d)
             for c in contacts_now(m, d, peg, hole):
                 rows.append((t, t * env.config.ctrl_dt, *c))
-            depth.append(float(state.info["depth_mm"]))
             bar.update()
             if float(state.done) > 0:
                 break
@@ -189,7 +178,6 @@ def record_contacts(
         steps=t,
         ctrl_dt=env.config.ctrl_dt,
         success=bool(float(state.metrics["success"]) > 0),
-        depth_mm=depth,
     )
 
 
