@@ -24,6 +24,7 @@ import numpy as np
 
 from peghole_mjx import fileio
 from peghole_mjx import progress as prog
+from peghole_mjx.control.limits import LIMITS
 from peghole_mjx.demo_cli import DEMO_OUTPUTS, DEMO_STATE, REPORT_TITLE, STAGE_OUTPUTS
 from peghole_mjx.demo_cli import add_parser as add_parser  # the group's parser (cli.GROUPS)
 from peghole_mjx.envs.engines import engine_overrides
@@ -167,8 +168,20 @@ def _run_experiment(out: Path) -> dict:
     return {"cells": cells}
 
 
+#: the cpu profile's training task and stop rule (decided 2026-12-02, before the demo run it
+#: governs). The demo's earlier training stage (RL + compliance strategy, the published rect
+#: recipe at 25 mm/s, 100k env steps on the ``mujoco`` engine) extracted 0 of 32 evaluation
+#: episodes on 2026-12-02. The committed time-to-success run on the same engine and profile
+#: (benchmarks/results/baselines/train_rect_mujoco_cpu-2core.json: RL without the compliance
+#: strategy, the action's full speed limit) reached 0.95 eval success at 49.6k env steps. So
+#: on the cpu profile the demo trains that task, up to the profile's 100k env steps, and stops
+#: at the first evaluation at or above this success rate. Other profiles train RL + CS.
+DEMO_CPU_STOP_AT_SUCCESS = 0.95
+
+
 def _train(out: Path, cfg) -> dict:
-    return run_mod.TrainingRun(cfg, out, render=True).run()
+    stop = DEMO_CPU_STOP_AT_SUCCESS if cfg.profile == "cpu" else None
+    return run_mod.TrainingRun(cfg, out, render=True, stop_at_success=stop).run()
 
 
 def _evaluate(policy: str, episodes: int) -> dict:
@@ -176,7 +189,18 @@ def _evaluate(policy: str, episodes: int) -> dict:
 
 
 def _train_config(profile: str, engine: dict):
+    """The demo's training config: on the cpu profile the task of the committed time-to-success
+    run (:data:`DEMO_CPU_STOP_AT_SUCCESS`), else RL + compliance strategy."""
+    if profile == "cpu":
+        over = {**engine, "env.action.max_speed_m_s": LIMITS.max_speed_m_s}
+        return load_train_config("RectExtract", profile, over, compliance_strategy=False)
     return load_train_config("RectExtract", profile, engine, compliance_strategy=True)
+
+
+def training_task(cfg) -> str:
+    """The demo training's task in words (for the report)."""
+    cs = (cfg.env_overrides or {}).get("compliance_strategy", True)
+    return "RL + compliance strategy" if cs else "RL, compliance strategy off"
 
 
 def output_bytes(cfg) -> int:
@@ -404,6 +428,7 @@ def cmd_demo(args: argparse.Namespace) -> int:
         **training["data"]["summary"],
         "demo_eval": training_eval["data"]["result"],
         "engine": engine["env.engine"],
+        "task": training_task(cfg),
     }
     timings = {
         "models": models["wall_s"],
@@ -557,8 +582,7 @@ def _report(out: Path, tr: dict, ev: dict, timings: dict, profile: str) -> str:
         "",
         *compliance_table(cells),
         "",
-        f"## 3. Training (RectExtract, RL + compliance strategy, profile {profile}, engine "
-        f"{tr['engine']})",
+        f"## 3. Training (RectExtract, {tr['task']}, profile {profile}, engine {tr['engine']})",
         "",
         f"{tr['env_steps']} env steps in {tr['wall_s']} s; eval return "
         f"{_f(tr['untrained_eval_return'], '.2f')} untrained -> "

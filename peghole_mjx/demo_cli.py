@@ -22,9 +22,12 @@ Steps (each also a command of its own):
    quasi-static oracle predicts the thesis's R1 reversed) and the sweep's cell nearest R1
    (K_theta 30 N m/rad); the report puts the simulated reductions beside the oracle's for the
    same worlds and the thesis's, and names each cell's regime;
-3. ``peghole train --env RectExtract --profile cpu`` on the ``mujoco`` engine (MuJoCo C, the
-   published rect policy's recipe: 100k env steps, a few minutes on 2 cores; ``--profile full``
-   on MJX on a GPU, which trains to the GPU targets of docs/research/results.md);
+3. ``peghole train --env RectExtract --profile cpu`` on the ``mujoco`` engine (MuJoCo C):
+   RL with the compliance strategy off at the action's full speed limit (the task of the
+   committed time-to-success run), up to 100k env steps, stopping at the first evaluation at
+   >= 0.95 success (``demo.DEMO_CPU_STOP_AT_SUCCESS``, decided 2026-12-02); ``--profile full``
+   on MJX on a GPU trains RL + compliance strategy to the GPU targets of
+   docs/research/results.md;
 4. ``peghole evaluate rect`` (the committed pretrained policy vs the scripted baseline);
 5. ``report.md`` linking the figures.
 

@@ -8,24 +8,23 @@ import subprocess
 import sys
 from pathlib import Path
 
-import jax.numpy as jnp
+import jax
 import mujoco
 import numpy as np
 import pytest
+from mujoco import rollout
 from scipy import stats
 
 from benchmarks import common
 from benchmarks.baselines import pybullet_peghole, time_to_success
 from benchmarks.evals import paired_reduction, rl_vs_rlcs
 from benchmarks.evals.cross_engine import compare, paired_difference
-from benchmarks.perf import engines, plot, roofline, throughput, warm_start
+from benchmarks.perf import contact_caps, engines, plot, roofline, throughput, warm_start
 from benchmarks.studies import capsule_fidelity
 from peghole_mjx import envs
-from peghole_mjx._mjx import mjx
-from peghole_mjx.control import ImpedanceController, Target, make_params
-from peghole_mjx.control.reference import rot_from_rotvec
 from peghole_mjx.envs.reward import REWARD_WEIGHTS
-from peghole_mjx.geometry.mjcf import CONTACT_CAPS, TOOL_DOWN_MAT
+from peghole_mjx.envs.rollout import scripted_policy
+from peghole_mjx.geometry.mjcf import CONTACT_CAPS
 from peghole_mjx.geometry.parts import DUAL_DEFAULT_REPRESENTATION, RECT_DEFAULT_REPRESENTATION
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -101,7 +100,9 @@ def test_committed_throughput_csvs_are_well_formed():
         with path.open() as f:
             assert next(csv.reader(f)) == EXPECTED_COLUMNS, path
         for r in common.read_csv(path):
-            assert r["engine"] in common.ENGINES and r["scene"] in ("rect", "dual")
+            # rows of a retired engine stay as measured (common.RETIRED_ENGINES)
+            engine_ok = r["engine"] in common.ENGINES or r["engine"] in common.RETIRED_ENGINES
+            assert engine_ok and r["scene"] in ("rect", "dual")
             assert r["physics_steps_per_s"] == pytest.approx(
                 10 * r["env_steps_per_s"], rel=1e-3, abs=1.0
             )
@@ -122,7 +123,8 @@ def test_quick_plan_covers_the_acceptance_engines():
     )()
     jobs = throughput.plan(args, gpu=None)
     engines = {j["engine"] for j in jobs}
-    assert {"mjx-jax", "mujoco-c", "mujoco-c-rollout"} <= engines
+    assert {"mjx-jax", "mujoco-1t", "mujoco-c-rollout"} <= engines
+    assert not set(common.RETIRED_ENGINES) & engines
     assert "mjx-warp" not in engines  # no GPU: skipped with a message
     assert not any(j["engine"] == "pybullet" and j["scene"] == "dual" for j in jobs)
     assert not any(j["engine"] == "mjx-jax" and j["scene"] == "dual" for j in jobs)
@@ -163,61 +165,54 @@ def test_tree_bytes_counts_leaves():
     assert roofline.tree_bytes(tree) == 3 * 4 * 4 + 5 * 4
 
 
-# ----------------------------------------------------------------------------- the law
-@pytest.fixture(scope="module")
-def rect_env():
-    return envs.load("RectExtract")
-
-
-def test_c_benchmark_control_law_matches_the_jax_law(rect_env):
-    """The MuJoCo C engine's law (``engines.CWorlds.law``: the NumPy reference on MuJoCo C
-    arrays, with the env config's gains) gives the JAX law's torques on one perturbed state."""
-    m = rect_env.mj_model
-    d = mujoco.MjData(m)
-    mujoco.mj_resetDataKeyframe(m, d, m.key("inserted").id)
-    rng = np.random.default_rng(0)
-    d.qvel[:] = 0.05 * rng.standard_normal(m.nv)
-    mujoco.mj_forward(m, d)
-    cw = engines.CWorlds(rect_env, 1)
-    ctl = ImpedanceController.from_model(m)
-    for scale, L_C in ((1.0, 0.0), (50.0, 0.05)):  # inside the limits, then clipped
-        tip = d.xpos[ctl.body_id] + d.xmat[ctl.body_id].reshape(3, 3) @ ctl.tip_local
-        tilt = rot_from_rotvec(np.array([0.004, -0.003, 0.002]) * scale)
-        t_mat = tilt @ TOOL_DOWN_MAT
-        t_pos = tip + np.array([0.8e-3, -0.5e-3, 2e-3]) * scale - L_C * t_mat[:, 2]
-        t_vel = np.array([0.0, 0.0, 0.02])
-        ff = np.array([1.0, -2.0, 3.0, 0.1, 0.0, -0.1])
-        cw.L_C = L_C
-        tau_np = cw.law(d, t_pos, t_mat, t_vel, ff)
-        params = make_params(
-            L_C, cw.q_null, stiffness=cw.stiff, damping_ratio=cw.zeta, wrench_ff=ff
-        )
-        out = ctl(
-            mjx.put_model(m),
-            mjx.put_data(m, d),
-            Target(jnp.asarray(t_pos), jnp.asarray(t_mat), jnp.asarray(t_vel)),
-            params,
-        )
-        np.testing.assert_allclose(tau_np, np.asarray(out.tau), rtol=2e-3, atol=2e-3)
-    assert np.any(np.abs(np.asarray(out.wrench_raw)) > np.abs(np.asarray(out.wrench)) + 1e-6)
-
-
-def test_mujoco_c_control_step_extracts_like_the_mjx_env(rect_env):
-    """The scripted pull in MuJoCo C + NumPy takes as long as in MJX (committed rollouts)."""
-    committed = json.loads((common.PERF_RESULTS / "env_rollouts.json").read_text())
-    mjx_time = next(
-        r["mean_time_s"]
-        for r in committed["rows"]
-        if r["env"] == "RectExtract" and r["policy"] == "scripted"
+# ----------------------------------------------------------------------------- MuJoCo C rows
+def test_rollout_row_replays_the_envs_own_closed_loop_torques():
+    """The mujoco-c-rollout row's torques are recorded on the env's mujoco engine
+    (``MujocoEngine.ctrl_log``): replayed open loop by ``mujoco.rollout`` from the recorded
+    starts (state, warm start, per-world hole pose and friction in the model copies), they
+    give the env's own states after the same steps, bit for bit."""
+    rec = engines.record_starts("rect", 2, 30)
+    env = rec["env"]
+    assert rec["control"].shape == (2, 30, env.mj_model.nu)
+    assert env.engine.ctrl_log is None  # the record is switched off again
+    fric = [float(m.pair_friction[0, 0]) for m in rec["models"]]
+    assert fric[0] != fric[1]  # each start's own friction draw
+    reset = jax.jit(jax.vmap(env.reset))
+    step = jax.jit(jax.vmap(env.step, in_axes=(0, None)))
+    s = reset(jax.random.split(jax.random.PRNGKey(1), 2))
+    for _ in range(3):
+        s = step(s, scripted_policy(env)(None, None))
+    states, _ = rollout.rollout(
+        rec["models"],
+        mujoco.MjData(rec["models"][0]),
+        rec["state"],
+        rec["control"],
+        initial_warmstart=rec["warmstart"],
     )
-    cw = engines.CWorlds(rect_env, 1, seed=5)
-    a = engines.scripted_action(rect_env)
-    steps = 0
-    while not cw.step(0, a):
-        steps += 1
-        assert steps < rect_env.config.episode_length
-    assert cw.last_outcome == "success"
-    assert (steps + 1) * rect_env.dt == pytest.approx(mjx_time, abs=0.2)
+    nq, nv = env.mj_model.nq, env.mj_model.nv
+    for w in range(2):
+        closed = np.asarray(s.data.state[w]).view(np.float64)
+        np.testing.assert_array_equal(states[w, -1, : 1 + nq + nv], closed[: 1 + nq + nv])
+
+
+def test_contact_count_replay_is_the_envs_step():
+    """``contact_caps.count_c`` counts after every physics step by replaying each env step of
+    the mujoco engine (it raises if the replay leaves the env's trajectory) and finds the
+    peg in contact."""
+    env = envs.load(
+        "RectExtract", config_overrides={"engine": "mujoco", "contact_cap": 0, "mujoco_threads": 1}
+    )
+    out = contact_caps.count_c(env, "random", 2, 3)
+    assert out["max_active"] > 0 and out["env_steps_per_world"] == 3
+    assert env.engine.ctrl_log is None
+    with pytest.raises(ValueError, match="mujoco engine"):
+        contact_caps.count_c(envs.load("RectExtract"), "scripted", 1, 1)
+
+
+def test_the_retired_engine_is_refused_in_one_line(capsys, tmp_path):
+    with pytest.raises(SystemExit):
+        throughput.main(["--engines", "mujoco-c", "--out", str(tmp_path / "x.csv")])
+    assert "mujoco-c was retired on 2026-12-02" in capsys.readouterr().err
 
 
 # ----------------------------------------------------------------------------- PyBullet
@@ -310,10 +305,14 @@ def test_throughput_table_traces_to_the_csv(tmp_path):
             _row(engine="mjx-jax", physics_steps_per_s=5000.0, env_steps_per_s=500.0),
             _row(engine="mujoco-c-rollout", physics_steps_per_s=2500.0, env_steps_per_s=250.0),
             _row(engine="pybullet", physics_steps_per_s=1000.0, env_steps_per_s=100.0),
+            _row(engine="mujoco-c", physics_steps_per_s=900.0, env_steps_per_s=90.0),
         ],
     )
     table = throughput.throughput_table(tmp_path)
     assert "| mjx-jax | rect | 1 | 5000.0 | 500.0 |" in table
+    # a retired engine's committed rows are rendered as measured, labelled, not rerunnable
+    assert "| mujoco-c (retired 2026-12-02) | rect | 1 | 900.0 | 90.0 |" in table
+    assert "retired code: no longer runs" in table
     assert "--engines pybullet --scenes rect --worlds 1" in table
     assert "mjx-jax / mujoco-c-rollout = 2" in table
     assert "mjx-jax / one PyBullet process = 5" in table
@@ -482,7 +481,8 @@ def test_committed_withdrawn_dual_analysis_is_reproduced_from_its_episodes():
 
 def test_gpu_suite_runs_its_tiny_configuration_on_the_cpu(tmp_path):
     """benchmarks/perf/gpu_suite.sh --tiny: the one-command GPU script, CPU smoke run (the
-    MuJoCo C rows run; mjx-warp skips cleanly without a GPU / warp; no training)."""
+    one-thread rows of the env's mujoco engine run; mjx-warp skips cleanly without a GPU /
+    warp; no training)."""
     env = {**os.environ, "OUT": str(tmp_path), "PYTHONPATH": str(ROOT), "PYTHON": sys.executable}
     res = subprocess.run(
         ["bash", str(ROOT / "benchmarks" / "perf" / "gpu_suite.sh"), "--tiny"],
@@ -495,7 +495,10 @@ def test_gpu_suite_runs_its_tiny_configuration_on_the_cpu(tmp_path):
     log = (tmp_path / "gpu_suite.log").read_text()
     assert "[skip] mjx-warp" in log and "done in" in log
     rows = common.read_csv(tmp_path / "throughput_tiny.csv")
-    assert {(r["engine"], r["scene"]) for r in rows} == {("mujoco-c", "rect"), ("mujoco-c", "dual")}
+    assert sorted((r["engine"], r["scene"]) for r in rows) == [
+        ("mujoco-1t", "dual"),
+        ("mujoco-1t", "rect"),
+    ]
     assert all(float(r["physics_steps_per_s"]) > 0 for r in rows)
 
 

@@ -150,8 +150,10 @@ def test_report_shows_both_cells_with_their_figures_table_and_regimes(tmp_path):
         "final_eval": {"mean_return": 2.0, "success_rate": 1.0},
         "demo_eval": ev,
         "engine": "mujoco",
+        "task": "RL, compliance strategy off",
     }
     text = demo._report(tmp_path, tr, ev, {"models": 1.0}, "quick")
+    assert "## 3. Training (RectExtract, RL, compliance strategy off, profile quick" in text
     section = text.split("## 2.")[1].split("## 3.")[0]
     assert "(compliance/force_depth.png)" in section
     assert "(compliance/r1_regime/force_depth.png)" in section
@@ -160,3 +162,19 @@ def test_report_shows_both_cells_with_their_figures_table_and_regimes(tmp_path):
     assert "| 70.1 | 70.1 | 77.1 |" in rows[1]
     bullets = [ln for ln in section.splitlines() if ln.startswith("- ")]
     assert "R1 is reversed" in bullets[0] and "R1 holds" in bullets[1]
+
+
+def test_cpu_demo_trains_the_time_to_success_task_and_stops_at_its_threshold():
+    """On the cpu profile the demo trains the committed time-to-success run's task (compliance
+    strategy off, the action's full speed limit) and stops at 0.95 eval success; the other
+    profiles keep RL + compliance strategy at their own speed limit."""
+    engine = {"env.engine": "mujoco"}
+    cpu = demo._train_config("cpu", engine)
+    assert cpu.env_overrides["compliance_strategy"] is False
+    assert cpu.env_overrides["action.max_speed_m_s"] == demo.LIMITS.max_speed_m_s
+    assert cpu.num_timesteps == 100_000 and demo.training_task(cpu).startswith("RL, ")
+    full = demo._train_config("full", {"env.engine": "mjx"})
+    assert full.env_overrides["compliance_strategy"] is True
+    assert full.env_overrides["action.max_speed_m_s"] == 0.025
+    assert demo.training_task(full) == "RL + compliance strategy"
+    assert demo.DEMO_CPU_STOP_AT_SUCCESS == 0.95

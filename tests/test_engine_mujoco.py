@@ -2,16 +2,19 @@
 kinematics against MuJoCo's own, its substeps against a loop over one MjData per world, per-world
 model fields, NaN worlds, and its bad-input errors."""
 
+import json
+
 import jax
 import jax.numpy as jnp
 import mujoco
 import numpy as np
 import pytest
 
+from benchmarks.common import PERF_RESULTS
 from peghole_mjx import envs
 from peghole_mjx.control.reference import impedance_torque, impedance_torque_c
 from peghole_mjx.envs.engine_mujoco import STATE_SPEC, MujocoEngine
-from peghole_mjx.envs.rollout import _batch_reset
+from peghole_mjx.envs.rollout import _batch_reset, scripted_policy
 from peghole_mjx.errors import UserInputError
 
 N = 4
@@ -181,6 +184,32 @@ def test_a_nan_world_ends_its_episode_and_the_batch_goes_on(env, fns):
     np.testing.assert_array_equal(np.asarray(out.data.state[0]), np.asarray(bad.data.state[0]))
     np.testing.assert_array_equal(np.asarray(out.data.state[1:]), np.asarray(clean.data.state[1:]))
     assert np.isfinite(np.asarray(out.obs)).all()
+
+
+def test_the_scripted_pull_extracts_as_on_mjx(env, fns):
+    """The scripted pull on the mujoco engine succeeds in the time the committed MJX rollouts
+    take (benchmarks/results/perf/env_rollouts.json, RectExtract, scripted: mean over 64
+    episodes): within 0.2 s in each of N worlds (with the engine's own done test)."""
+    committed = json.loads((PERF_RESULTS / "env_rollouts.json").read_text())
+    mjx_time = next(
+        r["mean_time_s"]
+        for r in committed["rows"]
+        if r["env"] == "RectExtract" and r["policy"] == "scripted"
+    )
+    reset, step = fns
+    s = reset(jax.random.split(jax.random.PRNGKey(5), N))
+    a = jnp.broadcast_to(scripted_policy(env)(None, None), (N, env.action_size))
+    steps = np.zeros(N, int)
+    success = np.zeros(N, bool)
+    for t in range(1, env.config.episode_length + 1):
+        s = step(s, a)
+        done = (np.asarray(s.done) > 0) & (steps == 0)
+        steps[done] = t
+        success[done] = np.asarray(s.metrics["success"])[done] > 0
+        if (steps > 0).all():
+            break
+    assert success.all(), steps
+    np.testing.assert_allclose(steps * env.dt, mjx_time, atol=0.2)
 
 
 def test_state_renders_through_mjdata(env, fns):

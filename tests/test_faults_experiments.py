@@ -265,7 +265,7 @@ def test_append_onto_a_malformed_file_is_refused_before_any_simulation(
 
 
 def test_append_keeps_the_old_runs_and_writes_atomically(tmp_path, capsys, monkeypatch):
-    def run(preset, variant, worlds, seed):
+    def run(preset, variant, worlds, seed, engine="mjx"):
         return {
             "preset": preset,
             "precision": "float32",
@@ -542,7 +542,7 @@ def test_a_sweep_with_every_world_nan_is_a_failure(tmp_path, capsys, fake_sweep)
 
 
 def test_a_contact_check_with_every_world_nan_is_a_failure(tmp_path, capsys, monkeypatch):
-    def run(preset, variant, worlds, seed):
+    def run(preset, variant, worlds, seed, engine="mjx"):
         return {
             "preset": preset,
             "precision": "float32",

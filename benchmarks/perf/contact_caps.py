@@ -6,8 +6,10 @@ error; DualExtractHard: dual-3, mu 0.266, where the scripted pull jams), the env
 WITHOUT a contact cap (``contact_cap=0``) and rolled out under the scripted policy (straight
 pull) and a uniformly random policy, in
 
-* MuJoCo C (``engines.CWorlds``: the env's control step with the NumPy impedance law),
-  counting the active contacts (distance <= 0) after EVERY physics step, and
+* MuJoCo C (the env on its ``mujoco`` engine, rows ``mujoco``), counting the active contacts
+  (distance <= 0) after EVERY physics step: each env step's physics steps replayed from its
+  start state with the torques the engine recorded (:func:`count_c`, checked bit for bit
+  against the env's end state), and
 * MJX-JAX (``jit(vmap(env.step))``), counting the active contacts of the contact buffer
   (``dist <= 0``) after every env step (the last of its physics substeps).
 
@@ -15,6 +17,16 @@ Finished episodes restart. The maximum over worlds, steps, engines and policies 
 ``measured_max``; the cap of ``peghole_mjx.geometry.mjcf.CONTACT_CAPS`` must be above it with a
 margin (``tests/test_envs.py::test_rollouts_stay_below_the_contact_cap`` fails if a capped
 rollout reaches it).
+
+The committed result (2026-11-30) is older: its MuJoCo C rows (``"engine": "mujoco-c"``) came
+from the benchmarks' own copy of the env's step, retired on 2026-12-02 (a second implementation
+of the task; its episodes started at the nominal hole pose). Those rows rerun on 2026-12-02 with
+:func:`count_c` (same 8 worlds, 400 env steps, seed 0; not committed) gave the same maximum in
+7 of 12 rows and a lower one in 5 (never higher): rect ``edges`` 14/20/12/20 (all equal), rect
+``box`` 10 and 14 (15), dual capsule 13 (16) and 20, DualExtractHard capsule 19 and 22 (26),
+dual mesh 9 (12) and 16 (18). The scene maxima stay those committed except dual capsule: 22
+instead of 26 (the old loop's random-action episodes; a tail over other episode starts), still
+under its cap of 32.
 
 Run ``python -m benchmarks.perf.contact_caps`` (about 15 minutes on 2 CPU cores; the mesh
 scene's MJX rollouts are short because its step compiles for minutes and runs at ~100 steps/s);
@@ -24,17 +36,21 @@ writes ``benchmarks/results/perf/contact_caps.json``.
 from __future__ import annotations
 
 import argparse
+import copy
 import json
 import sys
 import time
+from typing import Any
 
 import jax
 import jax.numpy as jnp
+import mujoco
 import numpy as np
 
 from benchmarks.common import PERF_RESULTS, out_file
-from benchmarks.perf.engines import CWorlds, scripted_action
+from benchmarks.perf.engines import scripted_action
 from peghole_mjx import envs
+from peghole_mjx.envs.engine_mujoco import STATE_SPEC
 from peghole_mjx.geometry.mjcf import CONTACT_CAPS
 from peghole_mjx.provenance import provenance
 
@@ -47,6 +63,8 @@ SCENES = (
     ("dual", "DualExtractHard", "capsule"),
     ("dual", "DualExtract", "mesh"),
 )
+#: the engines counted (row label -> env config entries)
+ENGINES = {"mujoco": {"engine": "mujoco"}, "mjx-jax": {"engine": "mjx", "impl": "jax"}}
 
 
 def _policy_action(kind: str, env, rng: np.random.Generator, worlds: int) -> np.ndarray:
@@ -55,35 +73,19 @@ def _policy_action(kind: str, env, rng: np.random.Generator, worlds: int) -> np.
     return rng.uniform(-1.0, 1.0, (worlds, env.action_size))
 
 
-def count_c(env, policy: str, worlds: int, env_steps: int, seed: int = 0) -> dict:
-    """Max active contacts in MuJoCo C after every physics step (closed-loop env control)."""
-    cw = CWorlds(env, worlds, seed=seed)
-    mj = cw.mujoco
-    worst = 0
-    orig_step = mj.mj_step
+def _restart_done(s, s0):
+    """The batch ``s`` with its finished worlds put back to their start states ``s0``."""
+    done = jnp.asarray(np.asarray(s.done) > 0)
 
-    def counting_step(model, data):
-        nonlocal worst
-        orig_step(model, data)
-        n = int(np.sum(data.contact.dist[: data.ncon] <= 0.0)) if data.ncon else 0
-        worst = max(worst, n)
+    def pick(n, o):
+        return jnp.where(done.reshape((-1,) + (1,) * (n.ndim - 1)), o, n)
 
-    cw.mujoco = type("MJ", (), {})()  # a namespace that forwards to mujoco but counts steps
-    for name in dir(mj):
-        if not name.startswith("__"):
-            setattr(cw.mujoco, name, getattr(mj, name))
-    cw.mujoco.mj_step = counting_step
-    rng = np.random.default_rng(seed)
-    episodes = 0
-    for _ in range(env_steps):
-        acts = _policy_action(policy, env, rng, worlds)
-        for w in range(worlds):
-            episodes += cw.step(w, acts[w])
-    return {"max_active": worst, "env_steps_per_world": env_steps, "episodes_ended": episodes}
+    return jax.tree.map(pick, s, s0)
 
 
-def count_mjx(env, policy: str, worlds: int, env_steps: int, seed: int = 0) -> dict:
-    """Max active contacts in MJX-JAX after every env step; finished worlds restart."""
+def _count(env, policy: str, worlds: int, env_steps: int, seed: int, active) -> tuple[dict, Any]:
+    """Roll ``worlds`` worlds of ``env`` for ``env_steps`` env steps (finished worlds restart)
+    and take the maximum of ``active(state_before, state_after) -> int`` over the env steps."""
     reset = jax.jit(jax.vmap(env.reset))
     step = jax.jit(jax.vmap(env.step))
     keys = jax.random.split(jax.random.PRNGKey(seed), worlds)
@@ -91,32 +93,84 @@ def count_mjx(env, policy: str, worlds: int, env_steps: int, seed: int = 0) -> d
     s = reset(keys)
     s0 = s
     rng = np.random.default_rng(seed)
-    worst, episodes, nan = 0, 0, 0.0
+    worst, episodes, nan, first_s = 0, 0, 0.0, 0.0
     for i in range(env_steps):
         a = jnp.asarray(_policy_action(policy, env, rng, worlds), jnp.float32)
-        s = step(s, a)
-        dist = s.data._impl.contact.dist
-        worst = max(worst, int(jnp.max(jnp.sum(dist <= 0.0, axis=-1))))
-        done = np.asarray(s.done) > 0
+        prev, s = s, step(s, a)
+        worst = max(worst, active(prev, s))
         nan += float(jnp.sum(s.metrics["nan"]))
+        done = np.asarray(s.done) > 0
         if done.any():
             episodes += int(done.sum())
-            d = jnp.asarray(done)
-
-            def pick(n, o, d=d):
-                return jnp.where(d.reshape((-1,) + (1,) * (n.ndim - 1)), o, n)
-
-            s = jax.tree.map(pick, s, s0)
+            s = _restart_done(s, s0)
         if i == 0:
             first_s = time.perf_counter() - t0
-    return {
+    out = {
         "max_active": worst,
         "env_steps_per_world": env_steps,
         "episodes_ended": episodes,
         "nan_worlds": nan,
         "compile_and_first_step_s": round(first_s, 1),
-        "allocated": int(s.data._impl.contact.dist.shape[-1]),
     }
+    return out, s
+
+
+def count_c(env, policy: str, worlds: int, env_steps: int, seed: int = 0) -> dict:
+    """Max active contacts in MuJoCo C after every physics step, the env run on its ``mujoco``
+    engine (``env`` built with ``engine="mujoco"``).
+
+    Each env step runs in the env with the engine's torque record on
+    (:attr:`~peghole_mjx.envs.engine_mujoco.MujocoEngine.ctrl_log`); its physics steps are then
+    replayed world by world in one ``MjData``, from the step's start state
+    (``env.engine.to_mjdata``) with the recorded torques and the world's friction scale, and
+    the active contacts counted after every ``mj_step``. The replay is the env's own step: its
+    end state must equal the env's bit for bit (checked; a RuntimeError otherwise)."""
+    if env.engine.name != "mujoco":
+        raise ValueError(f"count_c needs an env on the mujoco engine, got {env.engine.name!r}")
+    m = copy.copy(env.engine.model)
+    fric0 = np.array(m.pair_friction)
+    d = mujoco.MjData(m)
+    row = np.empty(env.engine.nstate)
+    log: list[np.ndarray] = []
+
+    def active(prev, s) -> int:
+        jax.block_until_ready(s.obs)
+        ctrl = np.stack(log, axis=1)  # (worlds, substeps, nu)
+        log.clear()
+        start = jax.tree.map(np.asarray, prev.data)
+        end = np.asarray(s.data.state)
+        fscale = np.asarray(prev.info["friction_scale"], float)
+        finite = np.asarray(s.metrics["nan"]) == 0
+        most = 0
+        for w in range(worlds):
+            m.pair_friction[:] = fric0 * fscale[w]
+            env.engine.to_mjdata(jax.tree.map(lambda x, w=w: x[w], start), m, d)
+            for tau in ctrl[w]:
+                d.ctrl[:] = tau
+                mujoco.mj_step(m, d)
+                most = max(most, int(np.sum(d.contact.dist[: d.ncon] <= 0.0)))
+            mujoco.mj_getState(m, d, row, STATE_SPEC)
+            if finite[w] and not np.array_equal(row, end[w].view(np.float64)):
+                raise RuntimeError(f"world {w}: the replayed step differs from the env's")
+        return most
+
+    env.engine.ctrl_log = log
+    try:
+        out, _ = _count(env, policy, worlds, env_steps, seed, active)
+    finally:
+        env.engine.ctrl_log = None
+    return out
+
+
+def count_mjx(env, policy: str, worlds: int, env_steps: int, seed: int = 0) -> dict:
+    """Max active contacts in MJX-JAX after every env step; finished worlds restart."""
+
+    def active(_, s) -> int:
+        dist = s.data._impl.contact.dist
+        return int(jnp.max(jnp.sum(dist <= 0.0, axis=-1)))
+
+    out, s = _count(env, policy, worlds, env_steps, seed, active)
+    return {**out, "allocated": int(s.data._impl.contact.dist.shape[-1])}
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -142,11 +196,12 @@ def main(argv: list[str] | None = None) -> int:
     for scene, name, rep in SCENES:
         if (name, rep) not in want:
             continue
-        env = envs.load(name, config_overrides={"representation": rep, "contact_cap": 0})
-        for engine in ("mujoco-c", "mjx-jax"):
+        over = {"representation": rep, "contact_cap": 0}
+        for engine, engine_over in ENGINES.items():
+            env = envs.load(name, config_overrides={**over, **engine_over})
             for policy in ("scripted", "random"):
                 t0 = time.perf_counter()
-                if engine == "mujoco-c":
+                if engine == "mujoco":
                     res = count_c(env, policy, args.worlds, args.c_steps)
                 else:
                     n = args.mesh_mjx_steps if rep == "mesh" else args.mjx_steps

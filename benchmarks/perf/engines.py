@@ -1,16 +1,18 @@
 """The throughput engines: one measured row per (engine, scene, worlds), run in a worker.
 
 ``run_mjx`` (MJX-JAX or MuJoCo Warp: ``jit(vmap(env.step))`` in a ``lax.scan`` chunk),
-``run_mujoco_c`` (MuJoCo C + the NumPy impedance law, :class:`CWorlds`), ``run_rollout``
-(``mujoco.rollout``, open loop: an upper bound) and ``run_pybullet`` (the PyBullet baseline,
-one process per core). :mod:`benchmarks.perf.throughput` (the runner) describes each engine and
-starts every row in a fresh process.
+``run_env_mujoco`` (the same on the env's ``mujoco`` engine), ``run_rollout``
+(``mujoco.rollout``, open loop, torques recorded on the env's ``mujoco`` engine: an upper
+bound) and ``run_pybullet`` (the PyBullet baseline, one process per core). Every MuJoCo row
+runs the env itself: the task (action decoding, law, termination) has one implementation,
+``peghole_mjx/envs/extraction.py`` (the one-thread ``mujoco-c`` engine, a second copy of the
+env's step in this module, was retired on 2026-12-02). :mod:`benchmarks.perf.throughput` (the
+runner) describes each engine and starts every row in a fresh process.
 """
 
 from __future__ import annotations
 
 import copy
-import math
 import multiprocessing as mp
 import os
 import time
@@ -24,12 +26,9 @@ from mujoco import rollout
 from benchmarks.baselines.pybullet_peghole import PegHoleSim
 from benchmarks.common import SCENE_OVERRIDES, SCENES, cpu_device, max_rss_mb
 from peghole_mjx import envs
-from peghole_mjx.control import ImpedanceController
-from peghole_mjx.control.reference import impedance_torque_c, rot_from_rotvec
 from peghole_mjx.envs.engine_mujoco import available_threads
+from peghole_mjx.envs.iiwa_constants import HOLE_BODY
 from peghole_mjx.envs.rollout import SCRIPTED_SPEED_M_S, scripted_policy
-from peghole_mjx.geometry.mjcf import TOOL_DOWN_MAT
-from peghole_mjx.geometry.specs import MM
 from peghole_mjx.provenance import device
 
 
@@ -157,126 +156,6 @@ def run_env_mujoco(
 
 
 # ----------------------------------------------------------------------------- MuJoCo C
-class CWorlds:
-    """The env's control step in MuJoCo C + the NumPy impedance law, one MjData per world.
-
-    Mirrors ``PegHoleEnv._decode_action`` / ``_physics`` / the done test of ``step`` (hole at
-    its nominal pose; commanded lateral and angular errors and the friction scale drawn per
-    world as in the env's reset). Finished worlds (success, jamming, time limit, NaN) restart.
-    """
-
-    def __init__(self, env, worlds: int, seed: int = 0, record: bool = False):
-        self.mujoco, self.MM = mujoco, MM
-        self.c = env.config
-        self.m = env.mj_model
-        m = self.m
-        self.ctl = ImpedanceController.from_model(m)
-        self.body = self.ctl.body_id
-        self.n_sub = env.n_substeps
-        s = self.c.stiffness
-        self.L_C = float(s.compliance_centre_mm) * MM
-        self.stiff = np.array(
-            [s.k_xy_N_m, s.k_xy_N_m, s.k_z_N_m, s.k_rot_Nm_rad, s.k_rot_Nm_rad, s.k_rot_Nm_rad]
-        )
-        self.zeta = float(s.damping_ratio)
-        self.null_gains = (s.null_stiffness_Nm_rad, s.null_damping_Nms_rad)
-        key = m.key("inserted")
-        self.key_id = key.id
-        self.q_null = np.array(key.qpos)[self.ctl.qadr]
-        self.fric0 = np.array(m.pair_friction)
-        self.tool_down = TOOL_DOWN_MAT
-        self.hole_body = m.body("hole").id
-        self.rng = np.random.default_rng(seed)
-        self.datas = [mujoco.MjData(m) for _ in range(worlds)]
-        self.info = [None] * worlds
-        for w in range(worlds):
-            self.reset(w)
-        self.record = record
-        self.ctrl_log: list[np.ndarray] = []
-        self.resets = 0
-        self.last_outcome: str | None = None
-
-    def tip(self, d) -> np.ndarray:
-        return d.xpos[self.body] + d.xmat[self.body].reshape(3, 3) @ self.ctl.tip_local
-
-    def depth_mm(self, d, info) -> float:
-        return float(-(info["hole_mat"].T @ (self.tip(d) - info["hole_pos"]))[2] / self.MM)
-
-    def reset(self, w: int) -> None:
-        mj, m, d, r = self.mujoco, self.m, self.datas[w], self.c.randomization
-        mj.mj_resetDataKeyframe(m, d, self.key_id)
-        mj.mj_forward(m, d)
-        rad = r.lateral_error_mm * self.MM * math.sqrt(self.rng.uniform())
-        ang = self.rng.uniform(0.0, 2 * math.pi)
-        tilt = self.rng.uniform(-1.0, 1.0, 2) * math.radians(r.angular_error_deg)
-        H = np.eye(3)
-        info = {
-            "hole_pos": d.xpos[self.hole_body].copy(),
-            "hole_mat": H,
-            "cmd_tip": self.tip(d) + np.array([rad * math.cos(ang), rad * math.sin(ang), 0.0]),
-            "cmd_mat": H @ rot_from_rotvec(np.array([tilt[0], tilt[1], 0.0])) @ self.tool_down,
-            "wrench_ff": np.zeros(3),
-            "fric": self.rng.uniform(*r.friction_scale),
-            "jam_time": 0.0,
-            "step": 0,
-        }
-        info["depth_mm"] = self.depth_mm(d, info)
-        self.info[w] = info
-
-    def law(self, d, target_pos, target_mat, target_vel, ff) -> np.ndarray:
-        """Joint torques of the NumPy reference law with the env config's gains and caps."""
-        tau, _ = impedance_torque_c(
-            self.ctl,
-            self.m,
-            d,
-            self.L_C,
-            target_pos,
-            target_mat,
-            target_vel,
-            self.stiff,
-            self.zeta,
-            ff,
-            self.q_null,
-            self.null_gains,
-            max_wrench=(*self.c.limits.max_force_N, *self.c.limits.max_torque_Nm),
-        )
-        return tau
-
-    def step(self, w: int, action: np.ndarray) -> bool:
-        """One env step of world ``w``; returns True when its episode ended (and restarts it)."""
-        mj, m, d, c, info = self.mujoco, self.m, self.datas[w], self.c, self.info[w]
-        a = np.clip(action, -1.0, 1.0)
-        H = info["hole_mat"]
-        prev = info["cmd_tip"]
-        dxy = a[:2] * c.action.max_step_offset_mm * self.MM
-        cmd_tip = prev + H @ np.array([dxy[0], dxy[1], a[2] * c.action.max_speed_m_s * c.ctrl_dt])
-        fx, fy, fz = c.limits.max_force_N  # the env's feed-forward caps (envs/extraction.py)
-        cap = np.asarray((min(fx, c.action.max_ff_xy_N), min(fy, c.action.max_ff_xy_N), fz))
-        wff = np.clip(info["wrench_ff"] + a[3:6] * c.action.max_force_step_N, -cap, cap)
-        cmd_mat = info["cmd_mat"]
-        axis = cmd_mat[:, 2]
-        vel = (cmd_tip - prev) / c.ctrl_dt
-        ff = np.concatenate([cmd_mat.T @ (H @ wff), np.zeros(3)])
-        m.pair_friction[:] = self.fric0 * info["fric"]
-        for i in range(self.n_sub):
-            tip = prev + (i + 1.0) / self.n_sub * (cmd_tip - prev)
-            tau = self.law(d, tip - self.L_C * axis, cmd_mat, vel, ff)
-            d.ctrl[self.ctl.act] = tau
-            if self.record:
-                self.ctrl_log.append(d.ctrl.copy())
-            mj.mj_step(m, d)
-        info.update(cmd_tip=cmd_tip, wrench_ff=wff, step=info["step"] + 1)
-        finite = bool(np.all(np.isfinite(d.qpos)) and np.all(np.isfinite(d.qvel)))
-        depth = self.depth_mm(d, info) if finite else math.nan
-        success = finite and depth < -c.success_margin_mm
-        done = success or (not finite) or info["step"] >= c.episode_length
-        if done:
-            self.last_outcome = "success" if success else "failure"
-            self.reset(w)
-            self.resets += 1
-        return done
-
-
 def scripted_action(env) -> np.ndarray:
     """The scripted pull as an env action (SCRIPTED_SPEED_M_S straight out)."""
     a = np.zeros(env.action_size)
@@ -284,67 +163,83 @@ def scripted_action(env) -> np.ndarray:
     return a
 
 
-def load_env_quiet(scene: str):
-    """The env of a throughput scene (its collision representation's overrides applied)."""
-    return envs.load(SCENES[scene], config_overrides=SCENE_OVERRIDES.get(scene))
+def record_starts(scene: str, starts: int, nstep: int, seed: int = 1) -> dict:
+    """Closed-loop torques of ``starts`` randomised episode starts of a throughput scene, on the
+    env's own ``mujoco`` engine under the scripted pull, ``nstep`` physics steps each.
 
-
-def run_mujoco_c(scene: str, worlds: int, min_time: float) -> dict:
-    """One throughput row of MuJoCo C + the NumPy law (:class:`CWorlds`), one thread."""
-    env = load_env_quiet(scene)
-    cw = CWorlds(env, worlds)
-    a = scripted_action(env)
-    steps, t0 = 0, time.perf_counter()
-    while True:
-        for w in range(worlds):
-            cw.step(w, a)
-        steps += worlds
-        elapsed = time.perf_counter() - t0
-        if elapsed >= min_time:
-            break
+    The env is stepped as any caller steps it (``jit(vmap(env.step))`` from
+    ``jit(vmap(env.reset))``) with the engine's torque record on
+    (:attr:`~peghole_mjx.envs.engine_mujoco.MujocoEngine.ctrl_log`). Returns ``control``
+    ``(starts, nstep, nu)``; per start, for ``mujoco.rollout``: ``state`` (mjSTATE_FULLPHYSICS
+    rows, written from the reset state by ``env.engine.to_mjdata``), ``warmstart``
+    (``qacc_warmstart``) and ``models`` (copies of the engine's model with that start's hole
+    pose on the hole's mocap body, which ``mujoco.rollout`` resets its data from, and its
+    friction scale, ``State.info["friction_scale"]``, on ``pair_friction``)."""
+    over = {**SCENE_OVERRIDES.get(scene, {}), "engine": "mujoco"}
+    env = envs.load(SCENES[scene], config_overrides=over)
+    with jax.default_device(jax.devices("cpu")[0]):  # a CPU engine, also on a GPU machine
+        s = jax.jit(jax.vmap(env.reset))(jax.random.split(jax.random.PRNGKey(seed), starts))
+        step = jax.jit(jax.vmap(env.step, in_axes=(0, None)))
+        action = scripted_policy(env)(None, None)
+    m0 = env.engine.model
+    d = mujoco.MjData(m0)
+    spec = mujoco.mjtState.mjSTATE_FULLPHYSICS
+    state = np.empty((starts, mujoco.mj_stateSize(m0, spec)))
+    warmstart = np.empty((starts, m0.nv))
+    hole = m0.body(HOLE_BODY).id
+    mocap = int(m0.body_mocapid[hole])
+    fscale = np.asarray(s.info["friction_scale"], float)
+    data0 = jax.tree.map(np.asarray, s.data)
+    models = []
+    for w in range(starts):
+        env.engine.to_mjdata(jax.tree.map(lambda x, w=w: x[w], data0), m0, d)
+        mujoco.mj_getState(m0, d, state[w], spec)
+        warmstart[w] = d.qacc_warmstart
+        mw = copy.copy(m0)
+        mw.pair_friction[:] = m0.pair_friction * fscale[w]
+        mw.body_pos[hole], mw.body_quat[hole] = d.mocap_pos[mocap], d.mocap_quat[mocap]
+        models.append(mw)
+    log: list[np.ndarray] = []
+    env.engine.ctrl_log = log
+    try:
+        with jax.default_device(jax.devices("cpu")[0]):
+            for _ in range(-(-nstep // env.n_substeps)):
+                s = step(s, action)
+            jax.block_until_ready(s.obs)
+    finally:
+        env.engine.ctrl_log = None
+    control = np.stack(log[:nstep], axis=1)  # (starts, nstep, nu)
     return {
-        "device": cpu_device(),
-        "physics_steps_per_s": steps * env.n_substeps / elapsed,
-        "env_steps_per_s": steps / elapsed,
-        "compile_s": None,
-        "peak_mem_mb": max_rss_mb(),
-        "extra": {"threads": 1, "episode_restarts": cw.resets, "timed_s": round(elapsed, 2)},
+        "env": env,
+        "control": control,
+        "state": state,
+        "warmstart": warmstart,
+        "models": models,
+        "episodes_ended": int(np.sum(np.asarray(s.done) > 0)),
     }
 
 
 def run_rollout(scene: str, worlds: int, min_time: float, nstep: int = 200) -> dict:
     """One throughput row of ``mujoco.rollout`` replaying recorded torques open loop on all
-    cores (an upper bound of MuJoCo C's rate)."""
-    env = load_env_quiet(scene)
-    rec = CWorlds(env, 1, record=True)
-    a = scripted_action(env)
-    for _ in range(-(-nstep // env.n_substeps)):
-        rec.step(0, a)
-    control = np.asarray(rec.ctrl_log[:nstep])[None]  # (1, nstep, nu), tiled over worlds
-    cw = CWorlds(env, min(worlds, 8), seed=1)
-    m0 = env.mj_model
-    models = []
-    for w in range(min(worlds, 8)):  # per-world friction: up to 8 distinct model copies
-        mw = copy.copy(m0)
-        mw.pair_friction[:] = cw.fric0 * cw.info[w]["fric"]
-        models.append(mw)
-    models = [models[w % len(models)] for w in range(worlds)]
-    spec = mujoco.mjtState.mjSTATE_FULLPHYSICS
-    size = mujoco.mj_stateSize(m0, spec)
-    init = np.empty((worlds, size))
-    for w in range(worlds):
-        d = cw.datas[w % len(cw.datas)]
-        mujoco.mj_getState(m0, d, init[w], spec)
+    cores (an upper bound of MuJoCo C's rate): world ``w`` replays start ``w mod 8`` of
+    :func:`record_starts` (the env's ``mujoco`` engine, closed loop) from that start's state."""
+    rec = record_starts(scene, min(worlds, 8), nstep)
+    env, n_rec = rec["env"], len(rec["models"])
+    pick = np.arange(worlds) % n_rec
+    models = [rec["models"][i] for i in pick]
+    init, warm, control = rec["state"][pick], rec["warmstart"][pick], rec["control"][pick]
+    m0 = models[0]
     nthread = os.cpu_count() or 1
     datas = [mujoco.MjData(m0) for _ in range(nthread)]
-    state = np.empty((worlds, nstep, size))
+    state = np.empty((worlds, nstep, init.shape[1]))
     sens = np.empty((worlds, nstep, m0.nsensordata))
     calls, t0 = 0, None
+    kw = {"initial_warmstart": warm, "state": state, "sensordata": sens}
     with rollout.Rollout(nthread=nthread) as r:
-        r.rollout(models, datas, init, control, state=state, sensordata=sens)  # warm-up
+        r.rollout(models, datas, init, control, **kw)  # warm-up
         t0 = time.perf_counter()
         while True:
-            r.rollout(models, datas, init, control, state=state, sensordata=sens)
+            r.rollout(models, datas, init, control, **kw)
             calls += 1
             elapsed = time.perf_counter() - t0
             if elapsed >= min_time and calls >= 2:
@@ -361,6 +256,8 @@ def run_rollout(scene: str, worlds: int, min_time: float, nstep: int = 200) -> d
             "threads": nthread,
             "nstep_per_rollout": nstep,
             "controls": "open loop: recorded closed-loop torques replayed (upper bound)",
+            "recorded": f"the env's mujoco engine (MujocoEngine.ctrl_log), {n_rec} starts",
+            "recorded_episodes_ended": rec["episodes_ended"],
             "nan_world_share": nan,
             "timed_s": round(elapsed, 2),
         },

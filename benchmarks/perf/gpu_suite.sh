@@ -83,7 +83,7 @@ EOF
 
 # ---------------------------------------------------------------- stages
 if [ "$TINY" = 1 ]; then
-  stage throughput 60 "$PY" -m benchmarks.perf.throughput --engines mujoco-c,mjx-warp \
+  stage throughput 60 "$PY" -m benchmarks.perf.throughput --engines mujoco-1t,mjx-warp \
     --scenes rect,dual --worlds 1 --min-time 0.2 --timeout 120 --out "$RES/throughput_tiny.csv" \
     --note "gpu_suite.sh --tiny (CPU smoke test)"
   say "time_to_success, training: skipped in --tiny"

@@ -15,7 +15,7 @@ from pathlib import Path
 
 from matplotlib.figure import Figure
 
-from benchmarks.common import ENGINES, PERF_RESULTS, read_csv
+from benchmarks.common import ENGINES, PERF_RESULTS, RETIRED_ENGINES, read_csv
 
 STYLE = {
     "mjx-jax": ("tab:blue", "o"),
@@ -27,7 +27,9 @@ STYLE = {
     "mujoco-1t": ("tab:pink", "X"),
     "batch-ceiling": ("tab:gray", "*"),
 }
-assert set(STYLE) == set(ENGINES), "every engine of the CSV needs a line style"
+#: the engines a committed CSV may hold (retired ones keep their measured rows)
+CSV_ENGINES = (*ENGINES, *RETIRED_ENGINES)
+assert set(STYLE) == set(CSV_ENGINES), "every engine of the CSV needs a line style"
 
 
 def plot_throughput(csv_path: Path, out_dir: Path) -> list[Path]:
@@ -38,7 +40,7 @@ def plot_throughput(csv_path: Path, out_dir: Path) -> list[Path]:
     for scene in sorted({r["scene"] for r in rows}):
         fig = Figure(figsize=(6.4, 4.4))
         ax = fig.subplots()
-        for engine in ENGINES:
+        for engine in CSV_ENGINES:
             pts = sorted(
                 (r["worlds"], r["physics_steps_per_s"])
                 for r in rows
@@ -47,7 +49,9 @@ def plot_throughput(csv_path: Path, out_dir: Path) -> list[Path]:
             if not pts:
                 continue
             color, marker = STYLE[engine]
-            ax.plot(*zip(*pts, strict=True), marker=marker, color=color, label=engine)
+            retired = RETIRED_ENGINES.get(engine)
+            label = f"{engine} (retired {retired})" if retired else engine
+            ax.plot(*zip(*pts, strict=True), marker=marker, color=color, label=label)
         ax.set_xscale("log", base=2)
         ax.set_yscale("log")
         ax.set_xlabel("worlds")

@@ -22,17 +22,21 @@ dual-2) scenes, with the iiwa and the impedance law, for these engines:
     the ``mujoco`` engine's run (all threads) timed inside its callbacks: env steps per second
     of ``mujoco.batch.Batch.step`` alone on the env's own states, what the engine would reach if
     its host law and callback cost nothing (the share is in the side JSON).
-``mujoco-c``
-    MuJoCo C (``mj_step``) in ONE thread, worlds stepped one after the other, with the
-    impedance law in NumPy run in closed loop at every physics step
-    (:func:`peghole_mjx.control.reference.impedance_torque`, tested against the JAX law): the
-    same control work per step as the MJX env, paid in Python (so this row is C physics +
-    NumPy control).
 ``mujoco-c-rollout``
     ``mujoco.rollout`` over all cores (one ``MjData`` per thread). Its controls are OPEN LOOP:
-    the joint torques of one closed-loop ``mujoco-c`` episode start (recorded), replayed in
-    every world. No control law runs, so this is an UPPER BOUND on what MuJoCo C can do for
-    this task on this machine (the law's cost and the Python round trip are left out).
+    the joint torques of up to 8 randomised episode starts run closed loop on the env's
+    ``mujoco`` engine (recorded through ``MujocoEngine.ctrl_log``), each replayed from its own
+    start state (bit for bit the env's trajectory). No control law runs, so this is an UPPER
+    BOUND on what MuJoCo C can do for this task on this machine (the law's cost and the
+    Python round trip are left out).
+
+Retired on 2026-12-02: ``mujoco-c`` (MuJoCo C in one thread, worlds one after the other, the
+NumPy law in a per-world Python loop), a second copy of the env's step (reset draw, action
+decoding, law call, done test) in ``benchmarks/perf/engines.py``; the ``mujoco`` /
+``mujoco-1t`` rows run the env's own step on MuJoCo C instead. Its committed rows stay in the
+CSVs as measured and the tables label them retired (``common.RETIRED_ENGINES``); it can no
+longer be run. The ``mujoco-c-rollout`` rows measured before that date replayed the torques of
+one start recorded by that loop.
 ``pybullet``
     PyBullet (the thesis's simulator), its bundled ``kuka_iiwa/model.urdf`` with the peg and
     the hole as boxes, the same impedance law in joint-torque control
@@ -40,11 +44,10 @@ dual-2) scenes, with the iiwa and the impedance law, for these engines:
     Rect only: the dual peg-hole is the task PyBullet could not run (convex hull, thesis
     Sec 1.6), so no PyBullet dual rows.
 
-The C engines start from the ``inserted`` keyframe at the nominal hole pose with the env's
-randomised commanded errors and friction (the hole pose itself is not moved: that needs an IK
-per world and does not change the cost of a step); PyBullet also moves the hole, as the env's
-reset does (Newton IK per reset). All engines restart finished episodes, and the restarts are
-timed with the steps.
+Every MuJoCo row starts from the env's own randomised resets (``env.reset``: the moved hole,
+the commanded errors, the friction draw); PyBullet also moves the hole, as the env's reset
+does (Newton IK per reset). All engines but the open-loop rollout restart finished episodes,
+and the restarts are timed with the steps.
 
 Peak memory: on a GPU, ``peak_bytes_in_use`` of the JAX device (XLA buffers; MuJoCo Warp's own
 scratch allocations are not counted); on the CPU, the worker process's max RSS (PyBullet: the
@@ -60,9 +63,9 @@ side JSON ``throughput_<device>.json`` (note, load average, command, per-row det
 ``mjx.Data`` leaves) and the memory-bandwidth roofline on an H100 (3.35 TB/s) and H200
 (4.8 TB/s), with the arithmetic.
 
-Run ``python -m benchmarks.perf.throughput --quick`` (under 5 minutes on 2 CPU cores: mjx-jax rect
-at 1 and 8 worlds, the C engines on both scenes, PyBullet rect; the dual MJX scene compiles for
-3-4 minutes on a CPU, so quick leaves it out) or the full sweep without ``--quick``.
+Run ``python -m benchmarks.perf.throughput --quick`` (mjx-jax rect at 1 and 8 worlds, the C
+engines on both scenes, PyBullet rect; the dual MJX scene compiles for 3-4 minutes on a CPU, so
+quick leaves it out) or the full sweep without ``--quick``.
 """
 
 from __future__ import annotations
@@ -80,6 +83,7 @@ from benchmarks.common import (
     COLUMNS,
     ENGINES,
     PERF_RESULTS,
+    RETIRED_ENGINES,
     ROOT,
     SCENE_OVERRIDES,
     SCENES,
@@ -99,7 +103,6 @@ from benchmarks.perf.engines import (
     jax_device_str,
     run_env_mujoco,
     run_mjx,
-    run_mujoco_c,
     run_pybullet,
     run_rollout,
 )
@@ -112,14 +115,13 @@ MODULE = "benchmarks.perf.throughput"
 #: default sweeps (worlds) per engine; GPU sweeps go to 16384
 SWEEP_CPU = {
     "mjx-jax": {"rect": [1, 8, 64, 256], "dual": [1, 8]},
-    "mujoco-c": {"rect": [1, 16], "dual": [1, 16]},
+    "mujoco-1t": {"rect": [1, 16], "dual": [1, 16]},
     "mujoco-c-rollout": {"rect": [1, 16, 256, 1024], "dual": [1, 16, 256, 1024]},
     "pybullet": {"rect": [1, 2, 8, 16]},
 }
 SWEEP_GPU = {
     "mjx-jax": {s: [1, 64, 1024, 4096, 16384] for s in SCENES},
     "mjx-warp": {s: [1, 64, 1024, 4096, 16384] for s in SCENES},
-    "mujoco-c": {s: [1, 16] for s in SCENES},
     "mujoco-c-rollout": {s: [1, 16, 256, 1024, 4096] for s in SCENES},
     "pybullet": {"rect": [1, 16, 64]},
 }
@@ -134,7 +136,7 @@ SWEEP_ENGINES = {
 }
 SWEEP_QUICK = {
     "mjx-jax": {"rect": [1, 8]},
-    "mujoco-c": {"rect": [1], "dual": [1]},
+    "mujoco-1t": {"rect": [1], "dual": [1]},
     "mujoco-c-rollout": {"rect": [1, 64], "dual": [1, 64]},
     "pybullet": {"rect": [1, 2]},
 }
@@ -158,8 +160,6 @@ def run_worker(spec: dict) -> dict:
         return run_env_mujoco(scene, worlds, spec["chunk"], spec["min_time"], threads)
     if engine == "batch-ceiling":
         return run_env_mujoco(scene, worlds, spec["chunk"], spec["min_time"], 0, ceiling=True)
-    if engine == "mujoco-c":
-        return run_mujoco_c(scene, worlds, spec["min_time"])
     if engine == "mujoco-c-rollout":
         return run_rollout(scene, worlds, spec["min_time"])
     if engine == "pybullet":
@@ -248,6 +248,16 @@ def _fmt(x, nd=1):
 
 
 # ----------------------------------------------------------------------------- docs tables
+#: every engine a committed CSV may hold: the runnable ones, then the retired ones
+CSV_ENGINES = (*ENGINES, *RETIRED_ENGINES)
+
+
+def engine_label(engine: str) -> str:
+    """The engine's name in the tables; a retired one with its date (its rows are kept)."""
+    date = RETIRED_ENGINES.get(engine)
+    return f"{engine} (retired {date})" if date else engine
+
+
 def throughput_csvs(results: Path = PERF_RESULTS) -> list[Path]:
     """The committed full-sweep throughput CSVs, one per device (``--quick`` ones left out)."""
     return sorted(
@@ -290,8 +300,10 @@ def throughput_table(results: Path = PERF_RESULTS) -> str:
                 f"`python -m {MODULE} --engines {r['engine']} --scenes {r['scene']} "
                 f"--worlds {r['worlds']} --merge`"
             )
+            if r["engine"] in RETIRED_ENGINES:
+                cmd = "retired code: no longer runs"
             out.append(
-                f"| {r['engine']} | {r['scene']} | {r['worlds']} | "
+                f"| {engine_label(r['engine'])} | {r['scene']} | {r['worlds']} | "
                 f"{fmt_num(r['physics_steps_per_s'])} | {fmt_num(r['env_steps_per_s'])} | "
                 f"{fmt_num(r['compile_s'])} | {fmt_num(r['peak_mem_mb'])} | {r['device']} "
                 f"| {cmd} |"
@@ -299,7 +311,7 @@ def throughput_table(results: Path = PERF_RESULTS) -> str:
         out.append("")
         for scene in sorted({r["scene"] for r in rows}):
             best = {}
-            for e in ENGINES:
+            for e in CSV_ENGINES:
                 pts = [
                     (r["physics_steps_per_s"], r["worlds"])
                     for r in rows
@@ -312,7 +324,7 @@ def throughput_table(results: Path = PERF_RESULTS) -> str:
                 for r in rows
                 if r["engine"] == "pybullet" and r["scene"] == scene and r["worlds"] == 1
             ]
-            parts = [f"{e} {v:.1f} (worlds={w})" for e, (v, w) in best.items()]
+            parts = [f"{engine_label(e)} {v:.1f} (worlds={w})" for e, (v, w) in best.items()]
             ratios = []
             for mjx in ("mjx-jax", "mjx-warp"):
                 if mjx not in best:
@@ -443,6 +455,12 @@ def main(argv: list[str] | None = None) -> int:
         args.engines = ",".join(SWEEP_ENGINES if args.sweep == "engines" else ENGINES)
     args.engines = [e.strip() for e in args.engines.split(",") if e.strip()]
     args.scenes = [s.strip() for s in args.scenes.split(",") if s.strip()]
+    retired = [e for e in args.engines if e in RETIRED_ENGINES]
+    if retired:
+        ap.error(
+            f"engine {retired[0]} was retired on {RETIRED_ENGINES[retired[0]]} (a second copy "
+            "of the env's step): run the env's engine, mujoco-1t (one thread) or mujoco"
+        )
     bad = [e for e in args.engines if e not in ENGINES] + [
         s for s in args.scenes if s not in SCENES
     ]
@@ -520,7 +538,7 @@ def main(argv: list[str] | None = None) -> int:
         )
         rows.append(row)
         details.append({**{k: row[k] for k in ("engine", "scene", "worlds")}, **res["extra"]})
-    order = {e: i for i, e in enumerate(ENGINES)}
+    order = {e: i for i, e in enumerate(CSV_ENGINES)}  # --merge keeps retired rows
     rows.sort(key=lambda r: (order[r["engine"]], r["scene"], int(r["worlds"])))
     write_csv(out, rows)
     # the load averages before and after are recorded with each run: say in --note what else ran

@@ -36,9 +36,17 @@ ordering) and the two-point region's length per L_C beside the oracle's::
     python -m benchmarks.studies.pull_speed --plan dual3_tilt_mu001    # dual-3 at the printed mu
     python -m benchmarks.studies.pull_speed --speeds 20,5 --repeats 4 --out /tmp/ps.json
     python -m benchmarks.studies.pull_speed --cells 3:0.2 --speeds 1   # one more (cell, speed)
+    python -m benchmarks.studies.pull_speed --engine mjx --cells 3:-0.2 --speeds 2   # on MJX
     python -m benchmarks.studies.pull_speed --mjx        # MJX spot checks (float64 and float32)
     python -m benchmarks.studies.pull_speed --mechanism  # one world, one rate-dependent term
     python -m benchmarks.studies.pull_speed --plot       # redraw pull_speed_rect.png
+
+``--engine`` chooses the engine of those rows (:data:`ENGINES`): ``mujoco`` (the default; every
+committed ``pull_speed_<plan>.json``) pulls each world in its own process and reads the
+extraction force from the per-step contact forces; ``mjx`` (the experiment's MJX-JAX engine,
+float64, since 2026-12-02) pulls each (cell, speed)'s worlds in one batch in this process and
+reads F_z from the experiment's F/T record (``Extraction.run``), has no ``mu_eff``, and
+writes ``pull_speed_<plan>_engine_mjx.json`` unless ``--out`` is given.
 
 Results: ``benchmarks/results/studies/pull_speed_*``; the docs table ``pull_speed`` is generated
 here.
@@ -265,11 +273,57 @@ def world(tab: dict[str, np.ndarray], i: int) -> dict[str, float]:
 
 #: how the replica's engine reads with Coulomb frictional rows (:attr:`Plan.coulomb_rows`)
 COULOMB = "; frictional rows as stiff as the normal (Coulomb)"
+#: the engines of the plan's rows (``--engine``; the first is the default)
+ENGINES = ("mujoco", "mjx")
+#: what the rows of the ``mjx`` engine are
+MJX_ENGINE = "MJX-JAX, float64, F_z from the experiment's F/T record"
 
 
-def engine_of(coulomb_rows: bool) -> str:
-    """The replica's engine string of a plan's rows."""
-    return ENGINE + (COULOMB if coulomb_rows else "")
+def engine_of(coulomb_rows: bool, engine: str = "mujoco") -> str:
+    """The engine string of a plan's rows (``engine``: one of :data:`ENGINES`)."""
+    return (ENGINE if engine == "mujoco" else MJX_ENGINE) + (COULOMB if coulomb_rows else "")
+
+
+def summarise_run(res: dict[str, np.ndarray], i: int, skip_mm: float) -> dict:
+    """The row of world ``i`` of an ``Extraction.run`` result, as :func:`summarise` gives it
+    from a trace: late peak F_z (the F/T reading, 20 ms means, Savitzky-Golay filtered, the
+    first ``skip_mm`` of the pull left out), both-walls fraction inside the late two-point
+    windows, penetration; ``mu_eff`` is None (the record holds no tangential force)."""
+    late = (res["time_s"] > res["settle_s"]) & (cx.pulled_mm(res)[i] > skip_mm)
+    tp = res["two_point"][i] & late
+    peak = cx.peaks(res, skip_mm)["fz"][i]
+    return {
+        "peak_fz_late_N": None if not np.isfinite(peak) else float(peak),
+        "both_walls_frac_in_two_point": float(res["both_frac"][i][tp].mean()) if tp.any() else None,
+        "two_point_windows": int(tp.sum()),
+        "penetration_um": float(res["penetration_mm"][i] * 1e3),
+        "mu_eff": None,
+    }
+
+
+def run_mjx_rows(todo: list[tuple], parts: Path, rows: dict[str, dict]) -> None:
+    """The :func:`jobs` ``todo`` on the ``mjx`` engine (float64, set by the caller): each
+    (cell, speed)'s worlds in one batch, their rows appended to the ``parts`` store and to
+    ``rows`` as each batch finishes."""
+    groups: dict[tuple, list[tuple]] = {}
+    for j in todo:
+        groups.setdefault((json.dumps(j[1], sort_keys=True), j[2], j[5]), []).append(j)
+    with parts.open("a") as f:
+        for (cell_json, v, coulomb), js in tqdm(groups.items(), desc="pull speed (MJX)"):
+            c = json.loads(cell_json)
+            cfg = experiment_config(_geometry(c), v, None, coulomb)
+            tab = {k: np.array([j[3][k] for j in js]) for k in cx.WORLD_KEYS}
+            t0 = time.perf_counter()
+            ex = cx.Extraction(c["preset"], cfg, mu=c["mu"], engine="mjx")
+            res = ex.run(progress=False, table=tab)
+            wall = (time.perf_counter() - t0) / len(js)
+            for i, (key, *_, oracle, _) in enumerate(js):
+                row = summarise_run(res, i, cx.EARLY_MM[_geometry(c)])
+                r = {"key": key, **row, "oracle_peak_fz_late_N": oracle, "wall_s": wall}
+                r["engine"] = engine_of(coulomb, "mjx")
+                rows[key] = r
+                f.write(json.dumps(sw.clean_json(r)) + "\n")
+                f.flush()
 
 
 def _job(args: tuple) -> dict:
@@ -774,10 +828,22 @@ def main() -> int:
     ap.add_argument(
         "--plot", action="store_true", help="redraw pull_speed_rect.png from the results only"
     )
+    ap.add_argument(
+        "--engine",
+        default=ENGINES[0],
+        choices=ENGINES,
+        help="the engine of the plan's rows: mujoco (default; MuJoCo C float64, one process per "
+        "world) or mjx (the experiment's MJX-JAX engine, float64, one batch per cell and speed)",
+    )
     ap.add_argument("--mjx-one", help=argparse.SUPPRESS)
     args = ap.parse_args()
     plan = PLANS[args.plan]
     geometry = geometry_of(args.plan)
+    if args.engine != ENGINES[0] and (args.mjx or args.mechanism or args.mjx_one or args.plot):
+        raise SystemExit(
+            "--engine chooses the engine of the plan's rows; --mjx runs both engines already, "
+            "--mechanism and --plot are MuJoCo C traces"
+        )
     if args.mjx_one:
         _mjx_one(args.mjx_one, args.out)
         return 0
@@ -795,7 +861,8 @@ def main() -> int:
         )
         return 0
     if args.out is None:
-        args.out = STUDIES_RESULTS / f"pull_speed_{args.plan}.json"
+        tail = "" if args.engine == ENGINES[0] else f"_engine_{args.engine}"
+        args.out = STUDIES_RESULTS / f"pull_speed_{args.plan}{tail}.json"
     if args.mechanism:
         path = args.out.with_name(args.out.stem + "_mechanism.json")
         rows = json.loads(path.read_text())["rows"] if path.exists() else []
@@ -830,7 +897,7 @@ def main() -> int:
     cells = [cell(k, b, args.plan) for k, b in pairs]
     parts = args.out.with_suffix(".parts.jsonl")
     rows = read_parts(parts)
-    engine = engine_of(plan.coulomb_rows)
+    engine = engine_of(plan.coulomb_rows, args.engine)
     for r in rows.values():
         # rows from before the engine was recorded had multi-point CCD on, which the rect
         # scenes never use (identical traces, checked 2026-11-29)
@@ -844,7 +911,11 @@ def main() -> int:
     # slow pulls first: the longest jobs start early and the two processes finish together
     todo.sort(key=lambda j: j[2])
     t0 = time.perf_counter()
-    run_to_parts(_job, todo, parts, rows, args.processes, "pull speed")
+    if args.engine == "mjx":
+        jax.config.update("jax_enable_x64", True)  # float32 loses slow sliding friction
+        run_mjx_rows(todo, parts, rows)
+    else:
+        run_to_parts(_job, todo, parts, rows, args.processes, "pull speed")
     summary = [
         s
         for k, b, v in summarised(rows, plan)
@@ -869,7 +940,7 @@ def main() -> int:
         **provenance(),
     }
     write_text(args.out, json.dumps(sw.clean_json(doc), indent=1, allow_nan=False) + "\n")
-    if args.plan == "rect":
+    if args.plan == "rect" and args.engine == ENGINES[0]:
         mech = args.out.with_name(args.out.stem + "_mechanism.json")
         print(
             write_figure(

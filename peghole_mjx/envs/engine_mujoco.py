@@ -89,7 +89,11 @@ class _Pool:
 
 
 class MujocoEngine:
-    """MuJoCo C on a ``mujoco.batch`` thread pool, behind ``jax.pure_callback``."""
+    """MuJoCo C on a ``mujoco.batch`` thread pool, behind ``jax.pure_callback``.
+
+    :attr:`ctrl_log` (None by default) is an opt-in record of the applied joint torques: a list
+    assigned to it receives one ``(n, nu)`` copy of ``ctrl`` per physics substep of every step
+    call (host side, so it fills as the jitted step runs; no effect on the physics)."""
 
     name = "mujoco"
     #: the step and reset call the host (``jax.pure_callback``): JAX 0.10.2 does not keep a
@@ -140,6 +144,11 @@ class MujocoEngine:
         #: host seconds spent in the substep callbacks and, within them, in ``Batch.step``
         #: (the physics alone); read by benchmarks/perf/throughput.py
         self.timing = {"callback_s": 0.0, "batch_step_s": 0.0, "calls": 0}
+        #: opt-in torque record: set it to a list and every physics substep appends a copy of
+        #: the worlds' ``ctrl`` as applied, ``(n, nu)`` with the call's worlds flattened in
+        #: order (benchmarks/perf/engines.py replays them open loop in ``mujoco.rollout``,
+        #: benchmarks/perf/contact_caps.py step by step to count contacts); None: off
+        self.ctrl_log: list[np.ndarray] | None = None
         fd = np.dtype(np.float32)
         n_sub = self.n_substeps
         self._reading_shapes = (
@@ -290,6 +299,8 @@ class MujocoEngine:
             for k in range(n_sub):
                 tau = self._law(p, targets[:, k], mat, vel, prm)
                 p.ctrl[:, self.ctrl.act] = np.where(np.isfinite(tau), tau, 0.0)
+                if self.ctrl_log is not None:
+                    self.ctrl_log.append(np.array(p.ctrl))
                 t0 = time.perf_counter()
                 ok &= self._run(p, p.batch.step)
                 t_step += time.perf_counter() - t0

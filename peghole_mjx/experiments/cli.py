@@ -11,6 +11,10 @@ from peghole_mjx.lazy import command
 from peghole_mjx.validation import arg
 
 COMMANDS = "peghole_mjx.experiments.commands"
+ENGINE_HELP = (
+    "mjx (default: MJX-JAX, all worlds in one batch, float32 unless --x64) or mujoco (MuJoCo C, "
+    "float64, one world at a time)"
+)
 
 
 def add_parser(subparsers) -> None:
@@ -85,6 +89,7 @@ def add_parser(subparsers) -> None:
         action="store_true",
         help="run in float64 (float32 does not resolve pulls slower than a few mm/s)",
     )
+    w.add_argument("--engine", default="mjx", help=ENGINE_HELP)
     w.add_argument("--out", required=True, type=Path, help="output folder (resumable)")
     w.set_defaults(func=command(f"{COMMANDS}:run_sweep"))
 
@@ -107,10 +112,11 @@ def add_parser(subparsers) -> None:
     k.add_argument(
         "--x64", action="store_true", help="run in float64 (jax_enable_x64) instead of float32"
     )
+    k.add_argument("--engine", default="mjx", help=ENGINE_HELP)
     k.add_argument(
         "--append",
         action="store_true",
-        help="keep the runs already in --out (a rerun of the same preset, variant and "
-        "precision replaces its row)",
+        help="keep the runs already in --out (a rerun of the same preset, variant, "
+        "precision and engine replaces its row)",
     )
     k.set_defaults(func=command(f"{COMMANDS}:run_contact_check"))

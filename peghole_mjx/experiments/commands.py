@@ -94,10 +94,12 @@ def run_sweep(args: argparse.Namespace) -> int:
         resolve_representation(PRESETS[grid.presets[0]], args.representation, impl="jax")
     if args.speed_mm_s is not None:
         sweep.check_value("speed_mm_s", args.speed_mm_s, "--speed-mm-s", "mm/s")
+    _check_engine(args)
     exp = ExperimentConfig(
         representation=args.representation,
         compensate_joint_damping=args.compensate_joint_damping,
         fix_cone_hessian=args.fix_cone_hessian,
+        engine=args.engine,
     )
     if args.speed_mm_s is not None:
         exp = dataclasses.replace(exp, speed_m_s=args.speed_mm_s * 1e-3)
@@ -111,6 +113,16 @@ def run_sweep(args: argparse.Namespace) -> int:
         print(f)
     print(sweep.summary_table(result))
     return 0
+
+
+def _check_engine(args: argparse.Namespace) -> None:
+    """``--engine`` is one of the experiment's engines, and ``--x64`` goes with ``mjx`` only
+    (the ``mujoco`` engine always runs in float64); else one line."""
+    cx.check_engine(args.engine)
+    if args.engine != "mjx" and args.x64:
+        raise UserInputError(
+            f"--x64 sets MJX's precision; the {args.engine} engine always runs in float64"
+        )
 
 
 def _no_duplicates(option: str, names) -> None:
@@ -143,6 +155,7 @@ def read_contact_runs(path: Path) -> list[dict]:
             and isinstance(r.get("variant"), dict)
             and isinstance(r["variant"].get("name"), str)
             and isinstance(r.get("precision", "float32"), str)
+            and isinstance(r.get("engine", "mjx"), str)
             and isinstance(r.get("summary"), dict)
             and isinstance(r.get("worlds"), list)
         )
@@ -158,6 +171,7 @@ def contact_output_bytes(n_runs: int, worlds: int, old_bytes: int = 0) -> int:
 
 def run_contact_check(args: argparse.Namespace) -> int:
     """``peghole experiment contact-check``: each preset under each variant, one row each."""
+    _check_engine(args)
     if args.x64:
         jax.config.update("jax_enable_x64", True)
     presets = args.preset or ["rect-2", "rect-3"]
@@ -188,7 +202,9 @@ def run_contact_check(args: argparse.Namespace) -> int:
     runs = []
     for p in presets:
         for n in names:
-            r = cc.run_variant(p, cc.VARIANTS[n], worlds=args.worlds, seed=args.seed)
+            r = cc.run_variant(
+                p, cc.VARIANTS[n], worlds=args.worlds, seed=args.seed, engine=args.engine
+            )
             runs.append(r)
             if not args.json:
                 print(cc.table_row(r), flush=True)
@@ -204,12 +220,8 @@ def run_contact_check(args: argparse.Namespace) -> int:
                 f"warning: {r['preset']} {r['variant']['name']}: {r['summary']['failure']}",
                 file=sys.stderr,
             )
-    new_keys = {(r["preset"], r["variant"]["name"], r["precision"]) for r in runs}
-    kept = [
-        r
-        for r in old
-        if (r["preset"], r["variant"]["name"], r.get("precision", "float32")) not in new_keys
-    ]
+    new_keys = {cc.run_key(r) for r in runs}
+    kept = [r for r in old if cc.run_key(r) not in new_keys]
     runs = kept + runs
     doc = sweep.clean_json(
         {

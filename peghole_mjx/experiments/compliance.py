@@ -1,4 +1,5 @@
-"""The thesis's extraction experiment with an active compliance centre, in MJX (Sec 2.5, 3.4).
+"""The thesis's extraction experiment with an active compliance centre (Sec 2.5, 3.4), on two
+engines (:data:`ENGINES`).
 
 Per world: the peg starts fully inserted (keyframe ``inserted``, centred, aligned, no contact).
 The impedance law (:mod:`peghole_mjx.control`) holds the compliance centre ``C`` (``L_C`` above
@@ -16,9 +17,26 @@ the mean and the peak per-step normal contact force, the fraction of steps with 
 loaded, and the number of wall-contact switches. Two-point contact is judged on the per-side
 mean force of each sample (:func:`two_point_windows`), not on same-step coincidence.
 
-Batching: all worlds of a (preset, friction) run through ``jax.vmap`` inside one jitted,
-time-chunked ``lax.scan`` (tqdm shows the chunks); :meth:`Extraction.run` takes any table of
-per-world parameters, so a sweep batches every cell of a preset into the same compiled call.
+Engines (:class:`Extraction`'s ``engine``, ``ExperimentConfig.engine``): ``mjx`` runs all
+worlds of a (preset, friction) through ``jax.vmap`` inside one jitted, time-chunked
+``lax.scan`` (tqdm shows the chunks), so a sweep batches every cell of a preset into the same
+compiled call; ``mujoco`` runs each world in MuJoCo C, float64, with the NumPy twin of the law
+(:func:`peghole_mjx.control.reference.impedance_torque`), one ``MjData`` per world, and also
+gives a per-step trace (:meth:`Extraction.trace`, :data:`TRACE_COLUMNS`). What the engines
+share exists once here: the compiled scene (with optional ``mjOption`` fields), the keyframe
+start, the F/T tare, the step count, the command schedule (:func:`rest_pose_errors`,
+:func:`command`), the wall-side contact rule (:func:`contact_sides`), the loaded sides and
+wall switches (:func:`loaded_sides`, :func:`wall_switch`), the per-step record
+(:func:`record_row`, :func:`update_stats`) and its 20 ms aggregation
+(:func:`aggregate_samples`); each engine does the same float operations as before the two were
+joined (2026-12-02), so that their committed results reproduce.
+
+MuJoCo C's multi-point CCD (on by default in MuJoCo 4) is off in every compiled scene
+(``geometry.mjcf._set_options``): MJX collides convex meshes with its own routine, and with
+multi-point CCD on the ``mujoco`` engine does not reproduce it on the dual meshes (two dual-2
+worlds, K_theta 3 N m/rad, beta0 -0.2 deg, L_C = top, 0.5 mm/s: late peaks 0.121 / 0.112 N
+with it, 0.168 / 0.177 N without; MJX float64 0.167 / 0.176 N, the quasi-static oracle 0.167 /
+0.176 N; 2026-11-29). The rect scenes (boxes, edge capsules) do not use CCD.
 """
 
 from __future__ import annotations
@@ -40,6 +58,7 @@ from peghole_mjx.analysis import dual as an_dual
 from peghole_mjx.analysis import oracle
 from peghole_mjx.analysis import rect as an_rect
 from peghole_mjx.control import GAINS, ImpedanceController, Target, make_params, rot_y
+from peghole_mjx.control.reference import impedance_torque, rot_from_rotvec
 from peghole_mjx.errors import UserInputError
 from peghole_mjx.geometry.mjcf import SimOptions, compile_scene
 from peghole_mjx.geometry.specs import MM, PRESETS
@@ -113,6 +132,20 @@ _MEAN = ("depth", "fx", "fy", "fz", "f_plus", "f_minus", "both_frac", "any_frac"
 _MAX = ("f_plus_max", "f_minus_max", "wrench_ratio", "pen_max")
 WORLD_KEYS = ("L_C", "delta0", "beta0", "theta0", "k_lat", "k_rot")
 
+#: the experiment's engines and what each is (the ``mujoco`` string is stored beside the
+#: results of the studies that ran on it, so that a result of another engine is redone)
+ENGINES = {
+    "mjx": "MJX-JAX: all worlds vmapped in one jitted lax.scan, float32 unless jax_enable_x64",
+    "mujoco": "MuJoCo C, float64, multi-point CCD off, NumPy impedance law",
+}
+#: per-step trace columns of the ``mujoco`` engine (:meth:`Extraction.trace`): tip depth m,
+#: normal force on the +x / -x wall sides N, largest penetration m, tangential and normal
+#: force sums N, extraction force = minus the contacts' vertical force on the peg N
+TRACE_COLUMNS = ("depth", "f_plus", "f_minus", "penetration", "f_tangential", "f_normal", "fz")
+#: a contact loads a wall side when its normal, pointing from the peg into the hole, has an x
+#: component beyond this (+x side above, -x side below its negative)
+SIDE_NX = 0.3
+
 
 @dataclass(frozen=True)
 class ExperimentConfig:
@@ -159,6 +192,9 @@ class ExperimentConfig:
     off_axis_rotational_stiffness_Nm_rad: float | None = None
     #: the law's damping ratio zeta (None: ``GAINS.damping_ratio``)
     damping_ratio: float | None = None
+    #: the engine (:data:`ENGINES`): ``mjx`` (MJX-JAX, batched) or ``mujoco`` (MuJoCo C,
+    #: float64, one world at a time); recorded by :func:`config_dict` when not ``mjx``
+    engine: str = "mjx"
     #: the rect and dual presets' L_C positions, step, contact time constant and collision
     #: representation (:class:`GeometrySetup`)
     rect: GeometrySetup = GeometrySetup(
@@ -224,12 +260,170 @@ def world_table(cfg: ExperimentConfig, preset: str) -> dict[str, np.ndarray]:
     }
 
 
-class Extraction:
-    """One preset's compiled scene (at friction ``mu``), controller and jitted chunk function."""
+def check_engine(engine: str) -> str:
+    """``engine`` if it is one of :data:`ENGINES`, else :class:`UserInputError` in one line."""
+    if engine not in ENGINES:
+        raise UserInputError(f"engine must be {' or '.join(ENGINES)}, not {engine!r}")
+    return engine
 
-    def __init__(self, preset: str, cfg: ExperimentConfig, mu: float | None = None):
+
+def set_options(m: mujoco.MjModel, opt: dict[str, float] | None) -> None:
+    """Set the ``mjOption`` fields ``opt`` (e.g. ``noslip_iterations``, ``impratio``) on the
+    compiled scene ``m``, for diagnoses of options the experiment does not set; an unknown
+    field is refused in one line."""
+    for k, v in (opt or {}).items():
+        if not hasattr(m.opt, k):
+            raise UserInputError(f"unknown mjOption field {k!r}")
+        setattr(m.opt, k, v)
+
+
+# ---- the per-step rules both engines share (xp: jax.numpy or numpy) -------------------------
+def rest_pose_errors(xp, L_C, delta0, beta0, theta0):
+    """The errors of the commanded pose of C: the spring rest pose of the quasi-static model
+    (:func:`peghole_mjx.analysis.common.rest_pose`; thesis Sec 2.3, Tables 2.2 and 3.2), world
+    frame: the lateral offset along +x, ``delta0 - L_C sin(theta0)`` (m), and the rotation about
+    world y, ``-(beta0 + theta0)`` (rad; thesis sign: a positive angle tilts the peg top
+    towards -x). ``xp``: ``jax.numpy``, ``numpy`` or ``math`` (floats)."""
+    return delta0 - L_C * xp.sin(theta0), -(beta0 + theta0)
+
+
+def command(xp, t, n_settle, speed_m_s: float, lateral_m, tilt_rad):
+    """The command schedule at physics step ``t`` (thesis Sec 2.5.1, 3.4.1: a perturbed start,
+    then a pull at constant speed): the commanded velocity of C (3,), m/s, zero during the
+    ``n_settle`` settling steps and ``speed_m_s`` straight up after them; and the rest-pose
+    errors (:func:`rest_pose_errors`) ramped in linearly over the settling steps (no impact at
+    the start): the lateral offset of C (3,), m, and the rotation about world y, rad.
+
+    Each engine integrates the velocity into its pulled point as it did before the engines
+    were joined: ``mjx`` accumulates the commanded point, ``mujoco`` the pulled distance added
+    to the start point (the same motion; the sums round differently in the last bit)."""
+    vel = xp.where(t >= n_settle, speed_m_s, 0.0) * xp.asarray([0.0, 0.0, 1.0])
+    a = xp.clip(t / xp.maximum(n_settle, 1), 0.0, 1.0)
+    return vel, a * lateral_m * xp.asarray([1.0, 0.0, 0.0]), a * tilt_rad
+
+
+def contact_sides(xp, normal_x, peg_is_geom1, normal_force, active, dist):
+    """Per contact, the wall side it loads and how deep it is: (normal force on the +x side,
+    on the -x side, N; penetration, m). A contact's normal points from geom1 to geom2; it is
+    turned to point from the peg into the hole, and the contact loads the +x side when its x
+    component exceeds :data:`SIDE_NX`, the -x side when it is below ``-SIDE_NX`` (the
+    floor's and the y walls' contacts load neither). ``normal_force`` is 0 for a contact that
+    carries none; ``active``: the contacts whose penetration counts (``mjx``: a constraint row
+    and a finite distance; ``mujoco``: a positive normal force)."""
+    nx = xp.where(peg_is_geom1, normal_x, -normal_x)
+    plus = xp.where(nx > SIDE_NX, normal_force, 0.0)
+    minus = xp.where(nx < -SIDE_NX, normal_force, 0.0)
+    return plus, minus, xp.where(active, -dist, 0.0)
+
+
+def loaded_sides(xp, plus, minus):
+    """Which wall sides a physics step loads (normal force above :data:`LOADED_N`): (+x
+    loaded, -x loaded, the one loaded side: +1 / -1, or 0 for none or both)."""
+    lp, lm = plus > LOADED_N, minus > LOADED_N
+    side = xp.where(lp & xp.logical_not(lm), 1.0, xp.where(lm & xp.logical_not(lp), -1.0, 0.0))
+    return lp, lm, side
+
+
+def wall_switch(side, last_side):
+    """A wall-contact switch: the one loaded side (:func:`loaded_sides`) differs from
+    ``last_side``, the last one-sided step's (0: none yet)."""
+    return (side != 0) & (last_side != 0) & (side != last_side)
+
+
+def update_stats(xp, stats, t_s, tip_depth, pen, ok, side):
+    """A world's running statistics after one physics step (6,): [0] the deepest contact, m,
+    [1] the NaN flag (1 once the state went non-finite), [2] the tip depth (m) and [3] the time
+    (s) of that deepest contact, [4] the last one-loaded side (:func:`loaded_sides`), [5] the
+    deepest contact while the tip is below the mouth, m."""
+    new_max = pen > stats[0]
+    return xp.stack(
+        [
+            xp.maximum(stats[0], pen),
+            xp.where(ok, 0.0, 1.0),
+            xp.where(new_max, tip_depth, stats[2]),
+            xp.where(new_max, t_s, stats[3]),
+            xp.where(side != 0, side, stats[4]),
+            xp.maximum(stats[5], xp.where(tip_depth > 0, pen, 0.0)),
+        ]
+    ).astype(stats.dtype)
+
+
+def record_row(xp, tip_depth, f, plus, minus, lp, lm, switch, ratio, pen):
+    """One physics step's :data:`REC` values: tip depth (m), the tared F/T force ``f`` (world
+    frame, N), the wall sides' normal forces (N, twice: for the means and the peaks), both /
+    either side loaded, a wall switch, the commanded wrench over its caps, the penetration
+    (m)."""
+    return xp.stack(
+        [
+            tip_depth,
+            f[0],
+            f[1],
+            f[2],
+            plus,
+            minus,
+            plus,
+            minus,
+            (lp & lm).astype(f.dtype),
+            switch.astype(f.dtype),
+            (lp | lm).astype(f.dtype),
+            ratio,
+            pen,
+        ]
+    )
+
+
+def aggregate_samples(xp, rec, k: int):
+    """Per-step records (steps, :data:`REC`) as 20 ms F/T samples of ``k`` steps each
+    (samples, :data:`REC`): the mean over the sample of the ``_MEAN`` columns (an anti-aliased
+    F/T reading), the maximum of the ``_MAX`` columns, the sum of the wall switches."""
+    rec = rec.reshape(-1, k, rec.shape[-1])
+    out = [None] * len(REC)
+    for name in _MEAN:
+        out[_R[name]] = rec[:, :, _R[name]].mean(1)
+    for name in _MAX:
+        out[_R[name]] = rec[:, :, _R[name]].max(1)
+    out[_R["switches"]] = rec[:, :, _R["switches"]].sum(1)
+    return xp.stack(out, axis=-1)
+
+
+def _sum_in_order(a: np.ndarray) -> np.ndarray:
+    """The sum over the last axis of ``a``, left to right from 0 (the ``mujoco`` engine's
+    per-step sums keep the order of the per-contact loop they replaced; ``np.sum`` pairs the
+    terms differently)."""
+    s = np.zeros(a.shape[:-1])
+    for j in range(a.shape[-1]):
+        s = s + a[..., j]
+    return s
+
+
+_BAD_STATE = (
+    mujoco.mjtWarning.mjWARN_BADQPOS,
+    mujoco.mjtWarning.mjWARN_BADQVEL,
+    mujoco.mjtWarning.mjWARN_BADQACC,
+)
+
+
+class Extraction:
+    """One preset's experiment (at friction ``mu``) on one engine: the compiled scene, the
+    law, the F/T tare and the step count, shared; then per engine the jitted MJX chunk
+    function (``mjx``) or the MuJoCo C loop (``mujoco``).
+
+    ``engine`` (None: ``cfg.engine``): ``mjx`` or ``mujoco`` (:data:`ENGINES`); ``opt``:
+    ``mjOption`` fields set on the compiled scene (:func:`set_options`)."""
+
+    def __init__(
+        self,
+        preset: str,
+        cfg: ExperimentConfig,
+        mu: float | None = None,
+        engine: str | None = None,
+        opt: dict[str, float] | None = None,
+    ):
         if preset not in PRESETS:
             raise UserInputError(f"unknown preset {preset!r}; known: {', '.join(PRESETS)}")
+        if engine is not None:
+            cfg = dataclasses.replace(cfg, engine=engine)
+        self.engine = check_engine(cfg.engine)
         self.preset, self.cfg = preset, cfg
         self.spec = PRESETS[preset]
         if mu is not None:
@@ -237,6 +431,7 @@ class Extraction:
         self.mu = float(self.spec.friction)
         rep = cfg.representation_of(self.spec.kind)
         m = compile_scene(self.spec, sim=cfg.sim_options(), representation=rep)
+        set_options(m, opt)
         self.m = m
         self.ctl = ImpedanceController(m, compensate_passive=cfg.compensate_joint_damping)
         d = mujoco.MjData(m)
@@ -252,19 +447,14 @@ class Extraction:
         self.ft_adr = int(ft.adr[0])
         self.ft_site = m.site("ft_site").id
         self.tip_site = m.site("peg_tip").id
-        self._peg_geom = jnp.asarray(m.geom_bodyid == m.body("peg").id)
         self.mouth_z = float(d.site("hole_mouth").xpos[2])
         self.tip_z0 = float(d.site("peg_tip").xpos[2])
         self.dt = m.opt.timestep
-        self.mx = mjx.put_model(m, impl="jax")
-        dx0 = mjx.put_data(m, d, impl="jax")
-        # with jax_enable_x64 a step returns some int32 fields as int64: start with its dtypes
-        out = jax.eval_shape(mjx.step, self.mx, dx0)
-        self.dx0 = jax.tree.map(lambda a, o: a.astype(o.dtype), dx0, out)
         depth = self.mouth_z - self.tip_z0
         pull = depth + cfg.clear_mm * MM
         self.n_settle = round(cfg.settle_s / self.dt)
-        n = self.n_settle + math.ceil(pull / (cfg.speed_m_s * self.dt))
+        #: steps until the tip is clear (a ``mujoco`` trace); ``run`` rounds up to whole chunks
+        self.n_pull = self.n_settle + math.ceil(pull / (cfg.speed_m_s * self.dt))
         self.record_every = round(cfg.record_every_s / self.dt)
         if self.record_every < 1 or abs(self.record_every * self.dt - cfg.record_every_s) > 1e-9:
             raise ValueError(
@@ -275,13 +465,23 @@ class Extraction:
                 f"chunk_steps ({cfg.chunk_steps}) must be a multiple of the steps per sample "
                 f"({self.record_every})"
             )
-        self.n_chunks = math.ceil(n / cfg.chunk_steps)
+        self.n_chunks = math.ceil(self.n_pull / cfg.chunk_steps)
         self.n_steps = self.n_chunks * cfg.chunk_steps
-        self._chunk = jax.jit(self._chunk_fn)
-        self._compiled = False  # the first chunk of the first run compiles _chunk
+        if self.engine == "mjx":
+            self._peg_geom = jnp.asarray(m.geom_bodyid == m.body("peg").id)
+            self.mx = mjx.put_model(m, impl="jax")
+            dx0 = mjx.put_data(m, d, impl="jax")
+            # with jax_enable_x64 a step returns some int32 fields as int64: start with its
+            # dtypes
+            out = jax.eval_shape(mjx.step, self.mx, dx0)
+            self.dx0 = jax.tree.map(lambda a, o: a.astype(o.dtype), dx0, out)
+            self._chunk = jax.jit(self._chunk_fn)
+            self._compiled = False  # the first chunk of the first run compiles _chunk
 
-    # ---- one world -------------------------------------------------------------------
+    # ---- engine mjx: one world ---------------------------------------------------------
     def init_world(self, L_C, delta0, beta0, theta0, k_lat, k_rot):
+        """The scan carry of one world (``mjx``): start state, target, law parameters, the
+        rest-pose errors (:func:`rest_pose_errors`) and the running statistics."""
         kz = self.cfg.axial_stiffness_N_m
         off = self.cfg.off_axis_rotational_stiffness_Nm_rad
         k_off = k_rot if off is None else jnp.full_like(k_rot, off)
@@ -292,10 +492,7 @@ class Extraction:
             damping_ratio=self.cfg.damping_ratio,
         )
         x_C, R = self.ctl.centre_pose(self.dx0, params.L_C)
-        # spring rest pose of the quasi-static model (analysis.common.rest_pose), world frame:
-        # lateral offset along +x, rotation about world y of -(beta0 + theta0) (thesis sign)
-        dx = delta0 - L_C * jnp.sin(theta0)
-        err = jnp.stack([dx, -(beta0 + theta0)])
+        err = jnp.stack(rest_pose_errors(jnp, L_C, delta0, beta0, theta0))
         target = Target(x_C, R, jnp.zeros(3))
         # max penetration m, nan flag, depth and time at max penetration, last single side,
         # max penetration while the tip is below the mouth (where the clearance constrains it)
@@ -303,91 +500,45 @@ class Extraction:
         return (self.dx0, target, params, err, stats)
 
     def _side_forces(self, dx):
-        """Normal contact force summed over the contacts facing +x and -x, N."""
+        """Normal contact force summed over the contacts facing +x and -x, N, and the deepest
+        contact, m (:func:`contact_sides`)."""
         con = dx._impl.contact
         addr = con.efc_address
         fn = jnp.where(addr >= 0, dx._impl.efc_force[jnp.maximum(addr, 0)], 0.0)
         nx = con.frame[:, 0, 0] if con.frame.ndim == 3 else con.frame[:, 0]
-        # the normal points from geom1 to geom2: make it point from the peg into the hole
-        nx = jnp.where(self._peg_geom[con.geom1], nx, -nx)
-        plus = jnp.sum(jnp.where(nx > 0.3, fn, 0.0))
-        minus = jnp.sum(jnp.where(nx < -0.3, fn, 0.0))
-        pen = jnp.max(jnp.where((addr >= 0) & jnp.isfinite(con.dist), -con.dist, 0.0), initial=0.0)
-        return plus, minus, pen
+        active = (addr >= 0) & jnp.isfinite(con.dist)
+        plus, minus, pen = contact_sides(jnp, nx, self._peg_geom[con.geom1], fn, active, con.dist)
+        return jnp.sum(plus), jnp.sum(minus), jnp.max(pen, initial=0.0)
 
     def step(self, carry, t):
+        """One physics step of one world (``mjx``): command (:func:`command`), law, MJX step
+        (a non-finite state keeps the last finite one and sets the NaN flag), readings."""
         dx, target, params, err, stats = carry
         cfg = self.cfg
-        moving = t >= self.n_settle
-        vel = jnp.where(moving, cfg.speed_m_s, 0.0) * jnp.array([0.0, 0.0, 1.0])
+        vel, offset, tilt = command(jnp, t, self.n_settle, cfg.speed_m_s, err[0], err[1])
         target = target._replace(pos=target.pos + vel * self.dt, vel=vel)
-        # both errors are ramped in over the settling time (no impact at the start)
-        a = jnp.clip(t / jnp.maximum(self.n_settle, 1), 0.0, 1.0)
-        cmd = target._replace(
-            pos=target.pos + a * err[0] * jnp.array([1.0, 0.0, 0.0]),
-            mat=rot_y(a * err[1]) @ target.mat,
-        )
+        cmd = target._replace(pos=target.pos + offset, mat=rot_y(tilt) @ target.mat)
         dx_c, out = self.ctl.apply(self.mx, dx, cmd, params)
         new = mjx.step(self.mx, dx_c)
         ok = jnp.all(jnp.isfinite(new.qpos)) & jnp.all(jnp.isfinite(new.qvel)) & (stats[1] == 0)
         dx = jax.tree.map(lambda a, b: jnp.where(ok, a, b), new, dx)
         plus, minus, pen = self._side_forces(dx)
         pen = jnp.where(ok, pen, 0.0)
-        new_max = pen > stats[0]
         tip_depth = self.mouth_z - dx.site_xpos[self.tip_site, 2]
-        # wall-contact switch: the one loaded side differs from the last one-sided step's
-        lp, lm = plus > LOADED_N, minus > LOADED_N
-        side = jnp.where(lp & ~lm, 1.0, jnp.where(lm & ~lp, -1.0, 0.0))
-        switch = (side != 0) & (stats[4] != 0) & (side != stats[4])
-        stats = (
-            stats.at[2]
-            .set(jnp.where(new_max, tip_depth, stats[2]))
-            .at[3]
-            .set(jnp.where(new_max, t * self.dt, stats[3]))
-            .at[0]
-            .max(pen)
-            .at[1]
-            .set(jnp.where(ok, 0.0, 1.0))
-            .at[4]
-            .set(jnp.where(side != 0, side, stats[4]))
-            .at[5]
-            .max(jnp.where(tip_depth > 0, pen, 0.0))
-        )
+        lp, lm, side = loaded_sides(jnp, plus, minus)
+        switch = wall_switch(side, stats[4])
+        stats = update_stats(jnp, stats, t * self.dt, tip_depth, pen, ok, side)
         # F/T force on the peg, world frame, tared
         f = dx.site_xmat[self.ft_site] @ dx.sensordata[self.ft_adr : self.ft_adr + 3]
         f = f - self.tare_world
         ratio = jnp.max(jnp.abs(out.wrench) / jnp.asarray(self.ctl.limits.max_wrench))
-        rec = jnp.stack(
-            [
-                tip_depth,
-                f[0],
-                f[1],
-                f[2],
-                plus,
-                minus,
-                plus,
-                minus,
-                (lp & lm).astype(f.dtype),
-                switch.astype(f.dtype),
-                (lp | lm).astype(f.dtype),
-                ratio,
-                pen,
-            ]
-        )
+        rec = record_row(jnp, tip_depth, f, plus, minus, lp, lm, switch, ratio, pen)
         return (dx, target, params, err, stats), rec
 
     def _world_chunk(self, carry, t0):
         ts = t0 + jnp.arange(self.cfg.chunk_steps)
         carry, rec = jax.lax.scan(self.step, carry, ts)
-        k = self.record_every
-        rec = rec.reshape(-1, k, rec.shape[-1])
-        out = [None] * len(REC)
-        for name in _MEAN:
-            out[_R[name]] = rec[:, :, _R[name]].mean(1)
-        for name in _MAX:
-            out[_R[name]] = rec[:, :, _R[name]].max(1)
-        out[_R["switches"]] = rec[:, :, _R["switches"]].sum(1)
-        return carry, jnp.stack(out, axis=-1)
+        return carry, aggregate_samples(jnp, rec, self.record_every)
 
     def _chunk_fn(self, carries, t0):
         f = functools.partial(self._world_chunk, t0=t0)
@@ -395,23 +546,8 @@ class Extraction:
             return jax.vmap(f)(carries)
         return f(carries)  # batch="map": one world per call
 
-    def run(
-        self, progress: bool = True, table: dict[str, np.ndarray] | None = None
-    ) -> dict[str, np.ndarray]:
-        """Run every world of ``table`` (default :func:`world_table`) in one batch.
-
-        Returns per world and sample the :data:`REC` columns (forces in N, ``depth_mm``), the
-        table, ``two_point`` (:func:`two_point_windows`), per-world ``penetration_mm`` (the
-        whole pull), ``penetration_in_hole_mm`` (while the tip is below the mouth; this still
-        holds the exit, where the tip's rounded edges pass the mouth's within about two edge
-        radii of the mouth), ``penetration_two_point_mm`` (inside the two-point windows, from
-        the per-sample maxima ``pen_max_mm``; NaN without a window) and ``nan``, the sample
-        times ``time_s`` and the start depth ``h0_mm``.
-        """
-        tab = world_table(self.cfg, self.preset) if table is None else table
-        missing = [k for k in WORLD_KEYS if k not in tab]
-        if missing:
-            raise ValueError(f"world table lacks {missing}")
+    def _run_mjx(self, tab: dict[str, np.ndarray], progress: bool):
+        """Every world of ``tab`` in MJX: (samples per world (worlds, samples, REC), stats)."""
         carries = jax.vmap(self.init_world)(*(jnp.asarray(tab[k]) for k in WORLD_KEYS))
         nw = len(tab["L_C"])
         if self.cfg.batch == "vmap":
@@ -446,8 +582,165 @@ class Extraction:
             stats.append(np.asarray(g[4]).reshape(-1, 6))
         if bar is not None:
             bar.close()
-        rec = np.concatenate(recs, axis=0).astype(np.float64)  # (worlds, samples, REC)
-        stats = np.concatenate(stats, axis=0)
+        return np.concatenate(recs, axis=0), np.concatenate(stats, axis=0)
+
+    # ---- engine mujoco: one world at a time ----------------------------------------------
+    def _pull_world(self, world: dict[str, float], n: int, record: bool = True):
+        """One world in MuJoCo C, float64, for ``n`` physics steps: its per-step trace (n,
+        :data:`TRACE_COLUMNS`) and, with ``record``, its per-step record (n, :data:`REC`) and
+        statistics (6,). The float64 operations of the trace are those of the replica this loop
+        was (``benchmarks/studies/c_replica.py`` before 2026-12-02), in the same order. MuJoCo
+        C resets a diverged state itself, with a warning: from that step on the world has the
+        NaN flag."""
+        m, cfg, ctl = self.m, self.cfg, self.ctl
+        d = mujoco.MjData(m)
+        mujoco.mj_resetDataKeyframe(m, d, m.key("inserted").id)
+        mujoco.mj_forward(m, d)
+        qadr, dadr, act = ctl.qadr, ctl.dadr, ctl.act
+        lo, hi = m.actuator_ctrlrange[act].T
+        peg = ctl.body_id
+        L_C = float(world["L_C"])
+        centre = ctl.tip_local - np.array([0.0, 0.0, L_C])
+        q0 = d.qpos[qadr].copy()
+        R0 = d.xmat[peg].reshape(3, 3).copy()
+        x0 = d.xpos[peg] + R0 @ centre
+        kr, kl = float(world["k_rot"]), float(world["k_lat"])
+        off = cfg.off_axis_rotational_stiffness_Nm_rad
+        ko = kr if off is None else off
+        stiff = np.array([kl, kl, cfg.axial_stiffness_N_m, ko, kr, ko])
+        zeta = GAINS.damping_ratio if cfg.damping_ratio is None else cfg.damping_ratio
+        null = (GAINS.null_stiffness_Nm_rad, GAINS.null_damping_Nms_rad)
+        cap = np.asarray(ctl.limits.max_wrench, float)
+        dt, tip = self.dt, self.tip_site
+        lateral, tilt0 = rest_pose_errors(
+            math, L_C, float(world["delta0"]), float(world["beta0"]), float(world["theta0"])
+        )
+        # the schedule of every step at once (elementwise: the same values step by step)
+        vel, offset, tilt = command(
+            np, np.arange(n)[:, None], self.n_settle, cfg.speed_m_s, lateral, tilt0
+        )
+        jacp, jacr, M = np.zeros((3, m.nv)), np.zeros((3, m.nv)), np.zeros((m.nv, m.nv))
+        f6 = np.zeros(6)
+        depth, sums = np.zeros(n), np.zeros((n, 3))  # tangential, normal, extraction force
+        contacts = []  # per step: normal force, normal x (geom1 to geom2), peg is geom1, dist
+        ft_R, ft_s, wrench, bad = np.zeros((n, 9)), np.zeros((n, 3)), np.zeros((n, 6)), []
+        ft = slice(self.ft_adr, self.ft_adr + 3)
+        z = 0.0
+        for t in range(n):
+            z += vel[t, 2] * dt
+            pos = x0 + np.array([0.0, 0.0, z]) + offset[t]
+            Rc = rot_from_rotvec(np.array([0.0, tilt[t, 0], 0.0])) @ R0
+            R = d.xmat[peg].reshape(3, 3)
+            xc = d.xpos[peg] + R @ centre
+            mujoco.mj_jac(m, d, jacp, jacr, xc, peg)
+            mujoco.mj_fullM(m, d, M)
+            J = np.vstack([jacp, jacr])[:, dadr]
+            bias = d.qfrc_bias[dadr]
+            if cfg.compensate_joint_damping:
+                bias = bias - d.qfrc_passive[dadr]
+            tau, wrench[t] = impedance_torque(
+                J, M[np.ix_(dadr, dadr)], bias, d.qpos[qadr], d.qvel[dadr], xc, R,
+                pos, Rc, vel[t], stiff, zeta, np.zeros(6), q0, null, cap, lo, hi,
+            )  # fmt: skip
+            d.ctrl[act] = tau
+            mujoco.mj_step(m, d)
+            k = d.ncon
+            fn, nx, own, dist = np.zeros(k), np.zeros(k), np.zeros(k, bool), np.zeros(k)
+            f_t = f_n = f_z = 0.0
+            for i in range(k):
+                c = d.contact[i]
+                mujoco.mj_contactForce(m, d, i, f6)
+                if f6[0] <= 0:
+                    continue
+                own[i] = m.geom_bodyid[c.geom1] == peg
+                frame = c.frame.reshape(3, 3)
+                on_peg = -(1.0 if own[i] else -1.0) * (frame.T @ f6[:3])  # world, on the peg
+                fn[i], nx[i], dist[i] = f6[0], frame[0, 0], c.dist
+                f_t += math.hypot(f6[1], f6[2])
+                f_n += f6[0]
+                f_z -= on_peg[2]
+            contacts.append((fn, nx, own, dist))
+            depth[t], sums[t] = self.mouth_z - d.site_xpos[tip][2], (f_t, f_n, f_z)
+            if record:
+                ft_R[t], ft_s[t] = d.site_xmat[self.ft_site], d.sensordata[ft]
+                bad.append(sum(d.warning[w].number for w in _BAD_STATE))
+        # the contact rule over every step's contacts (padded with contacts that carry nothing)
+        per = np.zeros((4, n, max((len(c[0]) for c in contacts), default=0)))
+        for t, c in enumerate(contacts):
+            per[:, t, : len(c[0])] = c
+        fn, nx, own, dist = per[0], per[1], per[2] > 0, per[3]
+        plus, minus, pens = contact_sides(np, nx, own, fn, fn > 0, dist)
+        fp, fm, pen = _sum_in_order(plus), _sum_in_order(minus), np.max(pens, -1, initial=0.0)
+        trace = np.column_stack([depth, fp, fm, pen, sums])
+        if not record:
+            return trace, None, None
+        # the experiment's record, as the mjx engine keeps it
+        ok = np.asarray(bad) == 0
+        pen = np.where(ok, pen, 0.0)
+        lp, lm, side = loaded_sides(np, fp, fm)
+        stats, last = np.zeros(6), np.zeros(n)
+        for t in range(n):
+            last[t] = stats[4]
+            stats = update_stats(np, stats, t * dt, depth[t], pen[t], ok[t], side[t])
+        f = (ft_R.reshape(n, 3, 3) @ ft_s[:, :, None])[:, :, 0] - self.tare_world
+        ratio = np.max(np.abs(wrench) / cap, axis=1)
+        switch = wall_switch(side, last)
+        rec = record_row(np, depth, f.T, fp, fm, lp, lm, switch, ratio, pen).T
+        return trace, rec, stats
+
+    def _run_mujoco(self, tab: dict[str, np.ndarray], progress: bool):
+        """Every world of ``tab`` in MuJoCo C, one after the other: (samples, stats)."""
+        nw = len(tab["L_C"])
+        bar = prog.bar(nw, f"{self.preset} pull (MuJoCo C)", unit="world", enabled=progress)
+        recs, stats = [], []
+        try:
+            for i in range(nw):
+                world = {k: float(tab[k][i]) for k in WORLD_KEYS}
+                _, rec, st = self._pull_world(world, self.n_steps)
+                recs.append(aggregate_samples(np, rec, self.record_every))
+                stats.append(st)
+                bar.update()
+        finally:
+            bar.close()
+        return np.stack(recs), np.stack(stats)
+
+    def trace(self, world: dict[str, float]) -> tuple[np.ndarray, int, float]:
+        """One world's per-step trace (``mujoco`` engine only), from the start until the tip
+        is :attr:`ExperimentConfig.clear_mm` above the mouth: (trace (steps,
+        :data:`TRACE_COLUMNS`), the settling steps, the physics step s). ``world`` holds the
+        :data:`WORLD_KEYS` (SI, rad)."""
+        if self.engine != "mujoco":
+            raise UserInputError(
+                "a per-step trace comes from the mujoco engine (MuJoCo C, one world at a time); "
+                f"this experiment runs on {self.engine}"
+            )
+        trace, _, _ = self._pull_world(world, self.n_pull, record=False)
+        return trace, self.n_settle, self.dt
+
+    # ---- both engines ----------------------------------------------------------------------
+    def run(
+        self, progress: bool = True, table: dict[str, np.ndarray] | None = None
+    ) -> dict[str, np.ndarray]:
+        """Run every world of ``table`` (default :func:`world_table`) on this engine (``mjx``:
+        in one batch; ``mujoco``: one after the other, the same steps and samples).
+
+        Returns per world and sample the :data:`REC` columns (forces in N, ``depth_mm``), the
+        table, ``two_point`` (:func:`two_point_windows`), per-world ``penetration_mm`` (the
+        whole pull), ``penetration_in_hole_mm`` (while the tip is below the mouth; this still
+        holds the exit, where the tip's rounded edges pass the mouth's within about two edge
+        radii of the mouth), ``penetration_two_point_mm`` (inside the two-point windows, from
+        the per-sample maxima ``pen_max_mm``; NaN without a window) and ``nan``, the sample
+        times ``time_s`` and the start depth ``h0_mm``.
+        """
+        tab = world_table(self.cfg, self.preset) if table is None else table
+        missing = [k for k in WORLD_KEYS if k not in tab]
+        if missing:
+            raise ValueError(f"world table lacks {missing}")
+        if self.engine == "mujoco":
+            rec, stats = self._run_mujoco(tab, progress)
+        else:
+            rec, stats = self._run_mjx(tab, progress)
+        rec = rec.astype(np.float64)  # (worlds, samples, REC)
         out = {k: np.asarray(v) for k, v in tab.items()}
         for name in REC:
             out[name] = rec[..., _R[name]]
@@ -670,6 +963,11 @@ class DivergedError(UserInputError):
 def nan_cause(cfg: ExperimentConfig, x64: bool = False, k_rot_min: float | None = None) -> str:
     """The likely cause of worlds that went NaN, from the settings that are known to do it."""
     k_rot = cfg.rotational_stiffness_Nm_rad if k_rot_min is None else k_rot_min
+    if cfg.engine == "mujoco":
+        return (
+            f"MuJoCo C reset a diverged state (step {cfg.sim_options().timestep * 1e3:g} ms, "
+            f"K_theta {k_rot:g} N m/rad): try a shorter step or a stiffer K_theta"
+        )
     if not cfg.fix_cone_hessian:
         return (
             "MJX's elliptic-cone Newton Hessian as shipped (run without --no-fix-cone-hessian; "
@@ -700,14 +998,14 @@ def check_not_all_nan(nan: np.ndarray, what: str, cause: str) -> None:
 
 def config_dict(cfg: ExperimentConfig) -> dict:
     """The config as JSON-ready data; ``sim``: the effective simulator options. A geometry's
-    :class:`GeometrySetup` is written only when it differs from the default, so that a
-    config's record (and a sweep's resume key, ``sweep.SweepConfig.settings``) is what it was
-    before the setups became fields."""
+    :class:`GeometrySetup` and the ``engine`` are written only when they differ from the
+    default, so that a config's record (and a sweep's resume key,
+    ``sweep.SweepConfig.settings``) is what it was before they became fields."""
     default = ExperimentConfig()
     out = {
         k: _json_ready(v)
         for k, v in dataclasses.asdict(cfg).items()
-        if k not in GEOMETRIES or getattr(cfg, k) != getattr(default, k)
+        if k not in (*GEOMETRIES, "engine") or getattr(cfg, k) != getattr(default, k)
     }
     sim = cfg.sim_options()
     out["sim"] = {k: _json_ready(v) for k, v in dataclasses.asdict(sim).items()}

@@ -139,23 +139,39 @@ def check_preset(preset: str):
     return spec
 
 
-def run_variant(
-    preset: str, variant: Variant, worlds: int = 8, seed: int = 0, progress: bool = True
-) -> dict:
-    """Run the standard case on ``worlds`` worlds; per-world metrics and the bounds' verdict
-    (a variant whose every world went NaN has a ``failure`` in its summary, and fails)."""
-    spec = check_preset(preset)
-    check("worlds", worlds, "--worlds")
-    # the law and solver as in the envs (no joint-damping cancellation, MJX as shipped): the
-    # variants differ in contact settings only (at K_theta 300 N m/rad both are small effects)
-    cfg = cx.ExperimentConfig(
+def variant_config(variant: Variant, engine: str = "mjx") -> cx.ExperimentConfig:
+    """The experiment's config of a variant on ``engine``: the law and solver as in the envs
+    (no joint-damping cancellation, MJX as shipped), so that the variants differ in contact
+    settings only (at K_theta 300 N m/rad both are small effects)."""
+    return cx.ExperimentConfig(
         geometry="rect",
         sim=variant.sim(),
         representation=variant.representation,
         chunk_steps=round(0.4 / variant.timestep_s),
         compensate_joint_damping=False,
         fix_cone_hessian=False,
+        engine=cx.check_engine(engine),
     )
+
+
+def run_variant(
+    preset: str,
+    variant: Variant,
+    worlds: int = 8,
+    seed: int = 0,
+    progress: bool = True,
+    engine: str = "mjx",
+) -> dict:
+    """Run the standard case on ``worlds`` worlds on ``engine`` (``mjx`` or ``mujoco``,
+    :data:`~peghole_mjx.experiments.compliance.ENGINES`); per-world metrics and the bounds'
+    verdict (a variant whose every world went NaN has a ``failure`` in its summary, and fails).
+
+    Every metric comes from the experiment's record (``Extraction.run``), which both engines
+    keep alike; the one difference is which contacts count for the penetration: on ``mjx``
+    those with a constraint row, on ``mujoco`` those with a positive normal force."""
+    spec = check_preset(preset)
+    check("worlds", worlds, "--worlds")
+    cfg = variant_config(variant, engine)
     t0 = time.perf_counter()
     ex = cx.Extraction(preset, cfg, mu=STANDARD_MU)
     tab = world_table(worlds, seed)
@@ -221,13 +237,26 @@ def run_variant(
             "or float32 rounding (try --x64)"
         )
 
+    x64 = engine == "mujoco" or jax.config.jax_enable_x64
     return {
         "preset": preset,
-        "precision": "float64" if jax.config.jax_enable_x64 else "float32",
+        "precision": "float64" if x64 else "float32",
+        "engine": engine,
         "variant": dataclasses.asdict(variant),
         "summary": summary,
         "worlds": rows,
     }
+
+
+def run_key(run: dict) -> tuple[str, str, str, str]:
+    """What a run of a contact-check JSON is a run of: (preset, variant, precision, engine); a
+    run from before the engine was recorded (2026-12-02) ran on ``mjx``."""
+    return (
+        run["preset"],
+        run["variant"]["name"],
+        run.get("precision", "float32"),
+        run.get("engine", "mjx"),
+    )
 
 
 def case_dict() -> dict:
@@ -259,8 +288,12 @@ def table_row(run: dict) -> str:
     def f(x, nd=2):
         return "-" if x is None else f"{x:.{nd}f}"
 
+    precision = run.get("precision", "float32")
+    if run.get("engine", "mjx") != "mjx":
+        precision += f" ({run['engine']})"
+
     return (
-        f"| {run['preset']} | {v['name']} | {run.get('precision', 'float32')} | "
+        f"| {run['preset']} | {v['name']} | {precision} | "
         f"{v['timestep_s'] * 1e3:g} | {v['representation']} | "
         f"{(v['contact_timeconst'] or 2 * v['timestep_s']) * 1e3:g} | "
         f"{'-' if v['friction_timeconst'] is None else v['friction_timeconst']} | "

@@ -13,7 +13,9 @@ quasi-static oracle's prediction for the same worlds.
 
 All worlds of one (preset, friction) pair run in one compiled batch, in slices of
 ``batch_worlds``; each finished slice is saved under ``OUT/parts/`` and found again on a rerun
-(resume), keyed by the sweep's settings.
+(resume), keyed by the sweep's settings. The experiment's engine
+(``ExperimentConfig.engine``: ``mjx``, batched, or ``mujoco``, MuJoCo C float64 one world at a
+time) is one of those settings when it is not ``mjx``, and the result records it (``engine``).
 """
 
 from __future__ import annotations
@@ -432,6 +434,7 @@ def run_sweep(cfg: SweepConfig, out: Path, progress: bool = True) -> dict:
     rows = [_cell_result(cells[i], per_cell[i], grid, cfg.seed, exp) for i in range(len(cells))]
     result = {
         "geometry": geometry,
+        "engine": exp.engine,
         "cells": rows,
         "best_match_R1": best_match(rows),
         "thesis": {"R1_reduction_pct": R1, "source": cx.THESIS["source"]},
@@ -697,9 +700,10 @@ def _simulate_slice(
     nw: int,
     geometry: str,
 ) -> dict[str, np.ndarray]:
-    """Run worlds ``s0 .. s0 + batch`` (the last slice padded to the compiled batch size)."""
+    """Run worlds ``s0 .. s0 + batch`` (on ``mjx`` the last slice is padded to the compiled
+    batch size; the ``mujoco`` engine runs one world at a time and needs no padding)."""
     n = min(batch, nw - s0)
-    pad = np.r_[np.arange(s0, s0 + n), np.full(batch - n, s0)]
+    pad = np.r_[np.arange(s0, s0 + n), np.full(batch - n if ex.engine == "mjx" else 0, s0)]
     res = ex.run(progress=False, table={k: v[pad] for k, v in table.items()})
     summ = _world_summary(res, geometry)
     return {k: (v if k == "curve_edges_mm" else v[:n]) for k, v in summ.items()}
