@@ -23,6 +23,7 @@ GROUPS: dict[str, str] = {
     "analyze": "peghole_mjx.analysis.cli",
     "experiment": "peghole_mjx.experiments.cli",
     "envs": "peghole_mjx.envs.cli",
+    "task": "peghole_mjx.envs.task_cli",  # a task folder (any peg-hole) for MeshExtract
     "train": "peghole_mjx.training.cli",  # also adds `evaluate` and `compare`
     "demo": "peghole_mjx.demo_cli",
     "export": "peghole_mjx.export_cli",  # policy -> ONNX for a robot (peghole_mjx.deploy)

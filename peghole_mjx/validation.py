@@ -94,6 +94,9 @@ IIWA_K_ROT = Range(0.0, 300.0, lo_open=True, why_hi=_KIND)
 #: above 4x every scene's allocated contacts are covered, and the cap no longer caps anything
 CONTACT_CAP_FACTOR = 4
 
+#: the longest observation or action latency of the env config, control steps
+MAX_LATENCY_STEPS = 10
+
 #: env config ranges (see RANGES); "why" notes say which limit a bound is
 ENV_RANGES: dict[str, Range] = {
     f"env.{k}": v
@@ -164,6 +167,31 @@ ENV_RANGES: dict[str, Range] = {
         "randomization.hole_yaw_deg": Range(0.0, 180.0),
         "randomization.friction_scale": Range(0.0, 100.0),  # x the preset's mu, within friction
         "randomization.stiffness_N_m": Range(0.0, 5000.0, why_hi=_KIND),
+        # shifts toward a real robot (envs/config.py): F/T noise and bias within the sensor's
+        # range of an ATI Mini45 (145 N, 5 N m), latencies within 10 control steps (200 ms at
+        # 50 Hz: the buffers are that long), tool-frame errors within 20 mm and 10 deg (a
+        # calibration gone wrong, not a small error), payload 0.1x-10x the peg
+        "randomization.ft_noise_force_N": Range(0.0, 145.0),
+        "randomization.ft_noise_torque_Nm": Range(0.0, 5.0),
+        "randomization.ft_bias_force_N": Range(0.0, 145.0),
+        "randomization.ft_bias_torque_Nm": Range(0.0, 5.0),
+        "randomization.ft_drift_force_N_sqrt_s": Range(0.0, 145.0),
+        "randomization.ft_drift_torque_Nm_sqrt_s": Range(0.0, 5.0),
+        "randomization.obs_latency_steps": Range(
+            0, MAX_LATENCY_STEPS, integer=True, why_hi="the longest latency buffer"
+        ),
+        "randomization.action_latency_steps": Range(
+            0, MAX_LATENCY_STEPS, integer=True, why_hi="the longest latency buffer"
+        ),
+        "randomization.tool_axial_mm": Range(-20.0, 20.0),
+        "randomization.tool_lateral_mm": Range(-20.0, 20.0),
+        "randomization.tool_tilt_deg": Range(-10.0, 10.0),
+        "randomization.payload_mass_scale": Range(0.1, 10.0),
+        # a stuck joint's breakaway force: > 0 (0 would release at the first step), up to 1000 N
+        # (above the law's axial cap, a weld that never releases); the weld's time constant
+        # from 1 ms (MuJoCo raises a solref below 2 x sim_dt to it) to 1 s
+        "stuck.breakaway_N": Range(0.0, 1000.0, lo_open=True),
+        "stuck.timeconst_s": Range(0.001, 1.0),
     }.items()
 }
 
@@ -180,6 +208,16 @@ RANGES: dict[str, Range] = {
         MIN_PART_MM, MAX_CAD_PART_MM, why_lo=WHY_MIN_PART, why_hi="the user scene's 2 m floor"
     ),
     "clearance_mm": Range(0.0, 50.0, lo_open=True),
+    # a built-in task's diametral clearance (peghole task builtin; geometry/shapes.py): the
+    # presets' range (dual-3 0.1 mm to 4x it)
+    "builtin_clearance_mm": Range(0.1, 0.4),
+    # a task folder's caps (peghole task make): convex pieces per part, vertices per piece,
+    # active contacts (geometry/task.py); rollouts that measure the contacts
+    "max_hulls": Range(1, 64, integer=True, why_hi="geometry/task.py MAX_HULLS"),
+    "max_hull_vertices": Range(4, 64, integer=True, why_hi="geometry/task.py MAX_HULL_VERTICES"),
+    "max_contacts": Range(1, 64, integer=True, why_hi="the env's contact buffer, naconmax 64"),
+    "contact_worlds": Range(1, 64, integer=True),
+    "contact_steps": Range(1, 10_000, integer=True),
     "warn_fraction": Range(0.0, 1.0, lo_open=True),
     "depth_mm": POSITIVE,
     # CoACD (its documented ranges; a threshold outside aborts or never ends)

@@ -19,11 +19,20 @@ from benchmarks import common
 from benchmarks.baselines import pybullet_peghole, time_to_success
 from benchmarks.evals import paired_reduction, rl_vs_rlcs
 from benchmarks.evals.cross_engine import compare, paired_difference
-from benchmarks.perf import contact_caps, engines, plot, roofline, throughput, warm_start
+from benchmarks.perf import (
+    contact_caps,
+    engines,
+    plot,
+    roofline,
+    task_cost,
+    throughput,
+    warm_start,
+)
 from benchmarks.studies import capsule_fidelity
 from peghole_mjx import envs
 from peghole_mjx.envs.reward import REWARD_WEIGHTS
 from peghole_mjx.envs.rollout import scripted_policy
+from peghole_mjx.errors import UserInputError
 from peghole_mjx.geometry.mjcf import CONTACT_CAPS
 from peghole_mjx.geometry.parts import DUAL_DEFAULT_REPRESENTATION, RECT_DEFAULT_REPRESENTATION
 
@@ -623,3 +632,20 @@ def test_warm_start_times_the_first_batch_marker_and_the_longest_silence():
     with pytest.raises(SystemExit) as exc:
         warm_start.main(["--runs", "0"])
     assert exc.value.code == 2
+
+
+def test_task_cost_refuses_a_folder_without_a_manifest_before_any_work(tmp_path):
+    """A folder that is not a complete task (no manifest.json: one still being built) is one
+    UserInputError line naming it, before any task is measured or the result written; the
+    preset scenes shown beside the tasks are the committed cost file's default ones."""
+    (tmp_path / "half").mkdir()
+    out = tmp_path / "task_cost.json"
+    with pytest.raises(UserInputError, match="half: no manifest.json") as exc:
+        task_cost.main(["--tasks", str(tmp_path / "half"), "--out", str(out)])
+    assert "\n" not in str(exc.value) and not out.exists()
+    ref = task_cost.reference_rows(common.PERF_RESULTS / "cost_cpu-2core.json")
+    assert [(r["env"], r["representation"]) for r in ref] == [
+        ("RectExtract", RECT_DEFAULT_REPRESENTATION),
+        ("DualExtract", DUAL_DEFAULT_REPRESENTATION),
+    ]
+    assert all(r["xla"]["env_step"]["bytes_per_world"] > 0 for r in ref)

@@ -250,3 +250,94 @@ def test_numpy_rotvec_roundtrip():
         R = ref.rot_from_rotvec(w)
         np.testing.assert_allclose(ref.rotvec_from_mat(R), kin.rotvec_from_mat(R), atol=1e-6)
     np.testing.assert_allclose(ref.rot_z(0.7), kin.rot_z(0.7), atol=1e-6)
+
+
+@pytest.fixture(scope="module")
+def twin_rig():
+    """The rect-2 scene with its controller, MJX model and the jitted JAX law."""
+    m = build_scene(PRESETS["rect-2"]).compile()
+    ctl = ImpedanceController(m)
+    mx = mjx.put_model(m, impl="jax")
+    return m, ctl, mx, jax.jit(lambda dx, target, p: ctl(mx, dx, target, p))
+
+
+def _random_state(m, ctl, rng):
+    d = mujoco.MjData(m)
+    mujoco.mj_resetDataKeyframe(m, d, m.key("inserted").id)
+    d.qpos[ctl.qadr] += 0.02 * rng.standard_normal(len(ctl.qadr))
+    d.qvel[ctl.dadr] = 0.1 * rng.standard_normal(len(ctl.dadr))
+    mujoco.mj_forward(m, d)
+    return d
+
+
+def test_numpy_law_equals_the_jax_law_with_a_tool_frame_and_a_load_error(twin_rig):
+    """Both twins with a believed tool frame off the true one (offset and tilt) and a payload
+    the gravity compensation leaves out: the same torques and wrench, and not those of the law
+    without the errors."""
+    from peghole_mjx.control.reference import impedance_torque_c, rot_from_rotvec
+
+    m, ctl, _mx, law = twin_rig
+    rng = np.random.default_rng(11)
+    q_null = np.array(m.key("inserted").qpos)[ctl.qadr]
+    for _ in range(3):
+        d = _random_state(m, ctl, rng)
+        L_C = rng.uniform(0.0, 0.15)
+        R = d.xmat[ctl.body_id].reshape(3, 3)
+        x_C = d.xpos[ctl.body_id] + R @ (ctl.tip_local - np.array([0.0, 0.0, L_C]))
+        t_mat = rot_from_rotvec(2e-3 * rng.standard_normal(3)) @ R
+        t_pos, t_vel = x_C + 1e-3 * rng.standard_normal(3), 0.02 * rng.standard_normal(3)
+        stiff = np.concatenate([rng.uniform(50, 1000, 3), rng.uniform(20, 300, 3)])
+        args = (stiff, 1.0, 0.1 * rng.standard_normal(6), q_null, (10.0, 2.0))
+        errors = dict(
+            tool_offset=2e-3 * rng.standard_normal(3),
+            tool_mat=rot_from_rotvec(np.radians(0.5) * np.array([*rng.standard_normal(2), 0])),
+            load_error=np.array([0.0, 0.0, -rng.uniform(0.5, 1.5)]),
+        )
+        tau_np, w_np = impedance_torque_c(ctl, m, d, L_C, t_pos, t_mat, t_vel, *args, **errors)
+        target = Target(jnp.asarray(t_pos), jnp.asarray(t_mat), jnp.asarray(t_vel))
+        stiff_, zeta, ff, _, null = args
+        params = make_params(L_C, q_null, stiff_, zeta, ff, null, **errors)
+        out = law(mjx.put_data(m, d, impl="jax"), target, params)
+        np.testing.assert_allclose(w_np, np.asarray(out.wrench), rtol=2e-3, atol=2e-3)
+        np.testing.assert_allclose(tau_np, np.asarray(out.tau), rtol=2e-3, atol=2e-3)
+        plain, _ = impedance_torque_c(ctl, m, d, L_C, t_pos, t_mat, t_vel, *args)
+        assert np.abs(plain - tau_np).max() > 0.05  # the errors change the torques
+
+
+def test_a_tool_offset_along_the_axis_is_an_L_C_change_in_the_law(twin_rig):
+    """The believed tip d above the true one (tool_offset (0, 0, -d), peg frame: z towards
+    the tip) puts the compliance centre where L_C + d puts it: the same torques in both
+    twins."""
+    from peghole_mjx.control.reference import impedance_torque_c
+
+    m, ctl, _mx, law = twin_rig
+    rng = np.random.default_rng(5)
+    d_ = _random_state(m, ctl, rng)
+    q_null = np.array(m.key("inserted").qpos)[ctl.qadr]
+    R = d_.xmat[ctl.body_id].reshape(3, 3)
+    t_pos = d_.xpos[ctl.body_id] + R @ ctl.tip_local + 1e-3 * rng.standard_normal(3)
+    t_mat, t_vel = R, np.zeros(3)
+    stiff = np.array([300.0, 300.0, 2000.0, 30.0, 30.0, 30.0])
+    L_C, off = 0.01, 0.002
+    args = (stiff, 1.0, np.zeros(6), q_null, (10.0, 2.0))
+    shifted, _ = impedance_torque_c(
+        ctl, m, d_, L_C, t_pos, t_mat, t_vel, *args, tool_offset=np.array([0.0, 0.0, -off])
+    )
+    moved, _ = impedance_torque_c(ctl, m, d_, L_C + off, t_pos, t_mat, t_vel, *args)
+    np.testing.assert_allclose(shifted, moved, rtol=1e-9, atol=1e-9)
+    target = Target(jnp.asarray(t_pos), jnp.asarray(t_mat), jnp.asarray(t_vel))
+    dx = mjx.put_data(m, d_, impl="jax")
+    p_tool = make_params(
+        L_C,
+        q_null,
+        stiff,
+        1.0,
+        np.zeros(6),
+        (10.0, 2.0),
+        tool_offset=np.array([0.0, 0.0, -off]),
+        tool_mat=np.eye(3),
+    )
+    p_lc = make_params(L_C + off, q_null, stiff, 1.0, np.zeros(6), (10.0, 2.0))
+    a, b = law(dx, target, p_tool), law(dx, target, p_lc)
+    np.testing.assert_allclose(np.asarray(a.tau), np.asarray(b.tau), rtol=1e-4, atol=1e-4)
+    np.testing.assert_allclose(np.asarray(a.x_C), np.asarray(b.x_C), atol=1e-6)

@@ -23,8 +23,14 @@ import pytest
 from peghole_mjx import envs
 from peghole_mjx.envs import base, extraction
 from peghole_mjx.envs.config import apply_overrides
-from peghole_mjx.envs.randomization import randomization_fn
+from peghole_mjx.envs.randomization import (
+    breakaway_draw,
+    ft_drift_sd,
+    ft_noise_sd,
+    randomization_fn,
+)
 from peghole_mjx.envs.reward import reward_terms
+from peghole_mjx.envs.stuck import weld_solref
 from peghole_mjx.errors import UserInputError
 
 ENV = "RectExtract"
@@ -114,6 +120,23 @@ def probe_termination(c):
     return _flat(out)
 
 
+def probe_ft(c):
+    """The F/T noise and drift SDs of each component (the step draws with them)."""
+    return _flat((ft_noise_sd(c.randomization), ft_drift_sd(c.randomization)))
+
+
+def probe_latency(c):
+    """The latency buffers a reset starts with."""
+    return _flat((jnp.zeros(0), extraction.latency_buffers(c, jnp.arange(3.0), 2)))
+
+
+def probe_stuck(c):
+    """A stuck joint's breakaway draws and its weld's solref."""
+    keys = jax.random.split(jax.random.PRNGKey(0), 4)
+    b = jax.vmap(lambda k: breakaway_draw(k, c.stuck))(keys)
+    return _flat((b, jnp.asarray(weld_solref(c.stuck))))
+
+
 def probe_reset_draw(c):
     keys = jax.random.split(jax.random.PRNGKey(0), 4)
     draw = jax.vmap(lambda k: randomization_fn(k, c.randomization, 300.0))(keys)
@@ -179,8 +202,28 @@ PURE = {
             "hole_yaw_deg": 2.0,
             "friction_scale": (0.9, 1.0),
             "stiffness_N_m": (100.0, 200.0),
+            # the shifts drawn per episode (docs/research/transfer.md)
+            "ft_bias_force_N": 0.1,
+            "ft_bias_torque_Nm": 0.01,
+            "tool_axial_mm": (1.0, 2.0),
+            "tool_lateral_mm": (1.0, 2.0),
+            "tool_tilt_deg": (0.1, 0.5),
+            "payload_mass_scale": (0.9, 1.1),
         }.items()
     },
+    **{
+        f"randomization.{k}": (v, [probe_ft])
+        for k, v in {
+            "ft_noise_force_N": 0.1,
+            "ft_noise_torque_Nm": 0.01,
+            "ft_drift_force_N_sqrt_s": 0.1,
+            "ft_drift_torque_Nm_sqrt_s": 0.01,
+        }.items()
+    },
+    "stuck.breakaway_N": ((25.0, 35.0), [probe_stuck]),
+    "stuck.timeconst_s": (0.01, [probe_stuck]),
+    "randomization.obs_latency_steps": (1, [probe_latency]),
+    "randomization.action_latency_steps": (2, [probe_latency]),
 }
 
 
@@ -208,6 +251,7 @@ def _scene(env) -> dict:
         "wrench_caps": env._ctrl.limits.max_wrench,
         "geom_size": float(np.abs(m.geom_size).sum()).__round__(9),
         "peg_length_m": env.peg_length_m,
+        "neq": m.neq,
     }
 
 
@@ -223,6 +267,7 @@ SCENE = {
     "contact.friction_timeconst_s": 0.5,
     "limits.max_force_N": (25.0, 25.0, 70.0),
     "limits.max_torque_Nm": (2.0, 2.0, 1.0),
+    "stuck.enabled": True,  # the breakaway weld (envs/stuck.py)
 }
 
 

@@ -36,41 +36,10 @@ import json
 import shutil
 from pathlib import Path
 
+from peghole_mjx.training.selection import checkpoint_dir, choose_checkpoint, eval_rows
+
 SCREEN_SEED = 20000  # screening episodes: disjoint from training evals (10000 + n) and seed 0
 SCREEN_WITHIN = 0.1  # screen the checkpoints whose training-eval success is this close to the best
-KEEP = ("eval/episodes", "eval/success_rate", "eval/mean_time_s", "eval/mean_fz_N")
-
-
-def _eval_rows(run: Path) -> list[dict[str, str]]:
-    from peghole_mjx.training.plots import read_metrics
-
-    return [r for r in read_metrics(run) if int(r["step"]) > 0]
-
-
-def _checkpoint_dir(run: Path, step: int) -> Path:
-    path = run / "checkpoints" / f"step_{step:010d}"
-    if not (path / "policy.json").exists():  # the last eval's checkpoint is the final policy
-        path = run / "final_policy"
-    return path
-
-
-def choose_checkpoint(run: Path, which: str) -> tuple[Path, dict]:
-    """The policy directory of ``which`` (best | final | a step number) and why it was chosen."""
-    if which == "final":
-        return run / "final_policy", {"rule": "final policy of the run"}
-    rows = _eval_rows(run)
-    if which == "best":
-        row = max(rows, key=lambda r: (float(r["eval/success_rate"]), -float(r["eval/mean_fz_N"])))
-        rule = "highest training-eval success, then lowest mean |F_z|"
-    else:
-        row = next(r for r in rows if int(r["step"]) == int(which))
-        rule = f"step {which}"
-    step = int(row["step"])
-    return _checkpoint_dir(run, step), {
-        "rule": rule,
-        "step": step,
-        **{k: float(row[k]) for k in KEEP},
-    }
 
 
 def screen_checkpoints(
@@ -81,7 +50,7 @@ def screen_checkpoints(
     from peghole_mjx.policies import load_policy
     from peghole_mjx.training.evaluate import params_sha256
 
-    rows = _eval_rows(run)
+    rows = eval_rows(run)
     near = max(float(r["eval/success_rate"]) for r in rows) - SCREEN_WITHIN
     if candidates is None:
         steps = [int(r["step"]) for r in rows if float(r["eval/success_rate"]) >= near]
@@ -94,7 +63,7 @@ def screen_checkpoints(
     cache_file = run / f"screen_seed{SCREEN_SEED}_{episodes}.json"
     cache = json.loads(cache_file.read_text()) if cache_file.exists() else {}
     for step in steps:
-        bundle = load_policy(_checkpoint_dir(run, step))
+        bundle = load_policy(checkpoint_dir(run, step))
         sha = params_sha256(bundle.params)
         if cache.get(str(step), {}).get("params_sha256") == sha:  # screened before: same result
             s = cache[str(step)]["summary"]
@@ -112,7 +81,7 @@ def screen_checkpoints(
         if candidates
         else f"checkpoints within {SCREEN_WITHIN} of the best training-eval success"
     )
-    return _checkpoint_dir(run, best), {
+    return checkpoint_dir(run, best), {
         "rule": f"highest success on {episodes} screening episodes (seed {SCREEN_SEED}) among "
         f"{among}, then lowest mean |F_z|",
         "step": best,

@@ -138,6 +138,9 @@ INACTIVE = frozenset(
         "obs.k_xy_scale_N_m",
         "obs.k_rot_scale_Nm_rad",
         "obs.torque_scale_Nm",
+        # the stuck joint's figures act only with stuck.enabled (REQUIRED off)
+        "stuck.breakaway_N",
+        "stuck.timeconst_s",
     }
 )
 #: entries the sim honours at one value only: the 9-D observation, the 6-D action with the
@@ -151,6 +154,20 @@ REQUIRED = {
     "obs.torques": False,
     "geometry": "",
     "randomization.stiffness_N_m": (0.0, 0.0),
+    # the transfer shifts (docs/research/transfer.md) and the stuck joint: off only
+    "randomization.ft_noise_force_N": 0.0,
+    "randomization.ft_noise_torque_Nm": 0.0,
+    "randomization.ft_bias_force_N": 0.0,
+    "randomization.ft_bias_torque_Nm": 0.0,
+    "randomization.ft_drift_force_N_sqrt_s": 0.0,
+    "randomization.ft_drift_torque_Nm_sqrt_s": 0.0,
+    "randomization.obs_latency_steps": 0,
+    "randomization.action_latency_steps": 0,
+    "randomization.tool_axial_mm": (0.0, 0.0),
+    "randomization.tool_lateral_mm": (0.0, 0.0),
+    "randomization.tool_tilt_deg": (0.0, 0.0),
+    "randomization.payload_mass_scale": (1.0, 1.0),
+    "stuck.enabled": False,
 }
 
 

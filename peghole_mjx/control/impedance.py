@@ -16,11 +16,20 @@ max Cartesian torque [3, 3, 1] N m), and maps it to joint torques::
     tau = J_C^T [F; M] + qfrc_bias + N^T (K_n (q_n - q) - D_n qdot)
     N^T = I - J^T Jbar^T,  Jbar = M^-1 J^T Lambda   (dynamically consistent null space)
 
-``qfrc_bias`` is MuJoCo's gravity + Coriolis/centrifugal term (the peg's mass included); with
+``qfrc_bias`` is MuJoCo's gravity + Coriolis/centrifugal term (the peg's mass included); a
+payload the law does not know of (``ImpedanceParams.load_error``, the weight its gravity
+compensation leaves out) adds ``J_G^T f_load`` with ``J_G`` the translational Jacobian of the
+peg's centre of mass; with
 ``compensate_passive`` the law also cancels the model's passive joint forces (``- qfrc_passive``:
 the joint damping), as a joint-torque-sensing arm's inner loop does; ``tau`` is clipped to the
 actuator ``ctrlrange`` read from the model. ``J_C`` is the 6 x nv Jacobian of the point ``C``
 on the peg body (:mod:`peghole_mjx.control.kinematics`).
+
+The tool frame is where the controller *believes* it: by default the peg body's frame at the
+tip site; with a calibration error (``ImpedanceParams.tool_offset`` and ``tool_mat``, the
+believed tool point and axes relative to the true ones, peg body frame) ``C`` lies ``L_C``
+along the believed axis above the believed tip, and the rotation error is that of the believed
+axes (``R tool_mat``). An offset along the axis is an ``L_C`` error of the same size.
 
 Everything is a pure function of ``(mjx.Model, mjx.Data, Target, ImpedanceParams)`` pytrees, so
 it jits, vmaps over worlds, and the stiffness may change at every control step (the RL's
@@ -62,6 +71,13 @@ class ImpedanceParams(NamedTuple):
     ``damping_ratio`` (): zeta; ``L_C`` (): compliance centre above the tip, m;
     ``wrench_ff`` (6,): force/torque feed-forward in the compliance frame (N, N m);
     ``q_null`` (nv,): null-space posture; ``null_gains`` (2,): K_n, D_n.
+
+    Optional (None: left out of the law's computation, which is then as without them):
+    ``tool_offset`` (3,): the believed tool (tip) point minus the true one, peg body frame, m;
+    ``tool_mat`` (3, 3): the believed tool axes in the true ones (the tool-frame calibration
+    error); ``load_error`` (3,): the weight the law's gravity compensation leaves out, world
+    frame, N (a payload heavier than the robot's load data: ``(m - m_nominal) g``), at the
+    peg's centre of mass.
     """
 
     stiffness: jax.Array
@@ -70,6 +86,9 @@ class ImpedanceParams(NamedTuple):
     wrench_ff: jax.Array
     q_null: jax.Array
     null_gains: jax.Array
+    tool_offset: jax.Array | None = None
+    tool_mat: jax.Array | None = None
+    load_error: jax.Array | None = None
 
 
 class ImpedanceOutput(NamedTuple):
@@ -89,8 +108,12 @@ def make_params(
     damping_ratio=None,
     wrench_ff=None,
     null_gains=None,
+    tool_offset=None,
+    tool_mat=None,
+    load_error=None,
 ) -> ImpedanceParams:
-    """Parameters with the defaults of :data:`~peghole_mjx.control.limits.GAINS`."""
+    """Parameters with the defaults of :data:`~peghole_mjx.control.limits.GAINS` (no tool-frame
+    or load error unless given)."""
     f = jnp.float32 if not jax.config.jax_enable_x64 else jnp.float64
     stiffness = GAINS.stiffness if stiffness is None else stiffness
     zeta = GAINS.damping_ratio if damping_ratio is None else damping_ratio
@@ -106,6 +129,9 @@ def make_params(
         wrench_ff=jnp.zeros(6, f) if wrench_ff is None else jnp.asarray(wrench_ff, f),
         q_null=jnp.asarray(q_null, f),
         null_gains=jnp.asarray(null, f),
+        tool_offset=None if tool_offset is None else jnp.asarray(tool_offset, f),
+        tool_mat=None if tool_mat is None else jnp.asarray(tool_mat, f),
+        load_error=None if load_error is None else jnp.asarray(load_error, f),
     )
 
 
@@ -162,16 +188,26 @@ class ImpedanceController:
         tip = jnp.asarray(self.tip_local)
         return tip - jnp.array([0.0, 0.0, 1.0]) * L_C
 
-    def centre_pose(self, d: mjx.Data, L_C: jax.Array) -> tuple[jax.Array, jax.Array]:
-        """World position of C and the peg rotation matrix."""
+    def centre_pose(
+        self, d: mjx.Data, L_C: jax.Array, tool_offset=None, tool_mat=None
+    ) -> tuple[jax.Array, jax.Array]:
+        """World position of C and the rotation of the tool frame the law holds: the peg's,
+        or with a calibration error (``tool_offset``, ``tool_mat``: see
+        :class:`ImpedanceParams`) the believed one, C on its axis above its tip."""
         R = d.xmat[self.body_id]
-        return d.xpos[self.body_id] + R @ self.centre_local(L_C), R
+        if tool_offset is None and tool_mat is None:
+            return d.xpos[self.body_id] + R @ self.centre_local(L_C), R
+        dtype = R.dtype
+        off = jnp.zeros(3, dtype) if tool_offset is None else tool_offset
+        Rt = jnp.eye(3, dtype=dtype) if tool_mat is None else tool_mat
+        local = jnp.asarray(self.tip_local, dtype) + off - Rt[:, 2] * L_C
+        return d.xpos[self.body_id] + R @ local, R @ Rt
 
     def __call__(
         self, m: mjx.Model, d: mjx.Data, target: Target, p: ImpedanceParams
     ) -> ImpedanceOutput:
         """Joint torques of the impedance law (see the module docstring)."""
-        x_C, R = self.centre_pose(d, p.L_C)
+        x_C, R = self.centre_pose(d, p.L_C, p.tool_offset, p.tool_mat)
         jacp, jacr = point_jacobian(m, d, x_C, self.body_id)  # (nv, 3) each
         J = jnp.concatenate([jacp.T, jacr.T])[:, self.dadr]  # (6, 7)
         qvel = d.qvel[self.dadr]
@@ -199,6 +235,10 @@ class ImpedanceController:
         NT = jnp.eye(J.shape[1], dtype=J.dtype) - J_loc.T @ Jbar.T
         tau0 = p.null_gains[0] * (p.q_null - q) - p.null_gains[1] * qvel
         tau = tau_task + d.qfrc_bias[self.dadr] + NT @ tau0
+        if p.load_error is not None:  # the payload's weight the compensation leaves out
+            com = d.xipos[self.body_id]
+            jacp_g, _ = point_jacobian(m, d, com, self.body_id)
+            tau = tau + (jacp_g @ p.load_error)[self.dadr]
         if self.compensate_passive:
             tau = tau - d.qfrc_passive[self.dadr]
         tau = jnp.clip(tau, self.ctrl_lo, self.ctrl_hi)

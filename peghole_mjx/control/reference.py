@@ -20,7 +20,14 @@ from collections.abc import Sequence
 import mujoco
 import numpy as np
 
-__all__ = ["impedance_torque", "impedance_torque_c", "rot_from_rotvec", "rot_z", "rotvec_from_mat"]
+__all__ = [
+    "impedance_torque",
+    "impedance_torque_c",
+    "rot_from_rotvec",
+    "rot_z",
+    "rotvec_from_mat",
+    "tool_centre",
+]
 
 
 def rotvec_from_mat(R: np.ndarray) -> np.ndarray:
@@ -64,6 +71,33 @@ def _mv(A: np.ndarray, x: np.ndarray) -> np.ndarray:
     return (A @ x[..., None])[..., 0]
 
 
+def tool_centre(
+    body_pos: np.ndarray,
+    body_R: np.ndarray,
+    tip_local: np.ndarray,
+    L_C: float | np.ndarray,
+    tool_offset: np.ndarray | None = None,
+    tool_mat: np.ndarray | None = None,
+) -> tuple[np.ndarray, np.ndarray]:
+    """World position of the compliance centre and the rotation of the tool frame the law
+    holds: :meth:`~peghole_mjx.control.impedance.ImpedanceController.centre_pose` in NumPy.
+
+    ``body_pos`` (..., 3) and ``body_R`` (..., 3, 3): the peg body's pose; ``tip_local`` (3,):
+    the tip in the peg body frame; ``L_C`` (...): C above the tip, m. ``tool_offset`` (..., 3)
+    and ``tool_mat`` (..., 3, 3): the believed tool point minus the true one and the believed
+    axes in the true ones (peg body frame); None: no calibration error (the peg's own frame).
+    """
+    L_C = np.asarray(L_C, float)
+    if tool_offset is None and tool_mat is None:
+        centre = np.asarray(tip_local)[None, :] - np.array([0.0, 0.0, 1.0]) * L_C.reshape(-1, 1)
+        centre = centre.reshape((*L_C.shape, 3))
+        return body_pos + _mv(body_R, centre), body_R
+    off = np.zeros(3) if tool_offset is None else np.asarray(tool_offset, float)
+    Rt = np.eye(3) if tool_mat is None else np.asarray(tool_mat, float)
+    local = np.asarray(tip_local) + off - Rt[..., :, 2] * L_C[..., None]
+    return body_pos + _mv(body_R, local), body_R @ Rt
+
+
 def impedance_torque(
     J: np.ndarray,
     M: np.ndarray,
@@ -83,12 +117,17 @@ def impedance_torque(
     max_wrench: Sequence[float],
     ctrl_lo: np.ndarray,
     ctrl_hi: np.ndarray,
+    load_jacp: np.ndarray | None = None,
+    load_error: np.ndarray | None = None,
 ) -> tuple[np.ndarray, np.ndarray]:
     """Joint torques (N m) and the clipped wrench (N, N m) of the Cartesian impedance law.
 
     ``J`` (6, n): world translational and rotational Jacobian of the compliance centre ``x_C``
     on the peg body, ``M`` (n, n) joint-space inertia, ``bias`` (n,) gravity + Coriolis
-    torques, ``R`` the peg body's rotation. The rest as in
+    torques, ``R`` the rotation of the tool frame the law holds (the peg body's, or the believed
+    one: :func:`tool_centre`). ``load_error`` (3,): the weight the gravity compensation leaves
+    out (world, N), through ``load_jacp`` (3, n), the translational Jacobian of the peg's
+    centre of mass (both None: none). The rest as in
     :class:`peghole_mjx.control.impedance.ImpedanceController`.
 
     Every argument may carry the same leading batch dimensions (one world each: ``J`` (..., 6,
@@ -117,6 +156,8 @@ def impedance_torque(
     # J^T w + N^T tau0 with N^T = I - J^T Jbar^T, Jbar = M^-1 J^T Lambda (never formed)
     Jbar_T_tau0 = _mv(_t(Lam), _mv(_t(MinvJT), tau0))
     tau = _mv(J_locT, w - Jbar_T_tau0) + bias + tau0
+    if load_error is not None:
+        tau = tau + _mv(_t(load_jacp), load_error)
     return np.clip(tau, ctrl_lo, ctrl_hi), w
 
 
@@ -134,15 +175,27 @@ def impedance_torque_c(
     q_null: np.ndarray,
     null_gains: Sequence[float],
     max_wrench: Sequence[float] | None = None,
+    tool_offset: np.ndarray | None = None,
+    tool_mat: np.ndarray | None = None,
+    load_error: np.ndarray | None = None,
 ) -> tuple[np.ndarray, np.ndarray]:
     """:func:`impedance_torque` on a MuJoCo C state (``mj_forward`` done), compliance centre
     ``L_C`` (m) above the tip; ids, tip and torque limits from ``ctl``
     (:class:`~peghole_mjx.control.impedance.ImpedanceController`), the wrench caps
-    ``max_wrench`` (N, N m) too unless given."""
+    ``max_wrench`` (N, N m) too unless given; ``tool_offset``, ``tool_mat`` and ``load_error``
+    as in :class:`~peghole_mjx.control.impedance.ImpedanceParams`."""
     R = d.xmat[ctl.body_id].reshape(3, 3)
-    x_C = d.xpos[ctl.body_id] + R @ (ctl.tip_local - np.array([0.0, 0.0, L_C]))
+    if tool_offset is None and tool_mat is None:
+        x_C = d.xpos[ctl.body_id] + R @ (ctl.tip_local - np.array([0.0, 0.0, L_C]))
+    else:
+        x_C, R = tool_centre(d.xpos[ctl.body_id], R, ctl.tip_local, L_C, tool_offset, tool_mat)
     jacp, jacr = np.zeros((3, m.nv)), np.zeros((3, m.nv))
     mujoco.mj_jac(m, d, jacp, jacr, x_C, ctl.body_id)
+    load_jacp = None
+    if load_error is not None:
+        load_jacp, jr = np.zeros((3, m.nv)), np.zeros((3, m.nv))
+        mujoco.mj_jac(m, d, load_jacp, jr, d.xipos[ctl.body_id], ctl.body_id)
+        load_jacp = load_jacp[:, ctl.dadr]
     M = np.zeros((m.nv, m.nv))
     mujoco.mj_fullM(m, d, M)
     lim = ctl.limits
@@ -167,4 +220,6 @@ def impedance_torque_c(
         max_wrench,
         ctl.ctrl_lo,
         ctl.ctrl_hi,
+        load_jacp,
+        load_error,
     )

@@ -1,7 +1,10 @@
 """Batched MJX environments for peg extraction (Brax / MuJoCo Playground API).
 
 Registry: ``load(name, config=None, config_overrides=None)``, ``get_default_config(name)``,
-``ALL_ENVS``.
+``ALL_ENVS`` (the envs that build from their default config: the thesis's two peg-holes and
+their hard variants; the tests loop over them), ``TASK_ENVS`` (the envs whose parts come from a
+task folder, ``--set env.task=DIR``: MeshExtract) and ``ENV_NAMES`` (both: every name ``load``
+takes).
 """
 
 from __future__ import annotations
@@ -10,7 +13,7 @@ from collections.abc import Callable
 
 from ml_collections import config_dict
 
-from peghole_mjx.envs import dual_extract, rect_extract
+from peghole_mjx.envs import dual_extract, mesh_extract, rect_extract
 from peghole_mjx.envs.base import State
 from peghole_mjx.envs.extraction import PegHoleEnv
 from peghole_mjx.errors import UserInputError
@@ -22,19 +25,27 @@ _envs: dict[str, type[PegHoleEnv]] = {
     # episodes (docs/index.md, "Hard variants")
     "RectExtractHard": rect_extract.RectExtract,
     "DualExtractHard": dual_extract.DualExtract,
+    # any peg-hole, read from a task folder (peghole task make / builtin)
+    "MeshExtract": mesh_extract.MeshExtract,
 }
 _cfgs: dict[str, Callable[[], config_dict.ConfigDict]] = {
     "RectExtract": rect_extract.default_config,
     "DualExtract": dual_extract.default_config,
     "RectExtractHard": rect_extract.hard_config,
     "DualExtractHard": dual_extract.hard_config,
+    "MeshExtract": mesh_extract.default_config,
 }
-ALL_ENVS = tuple(_envs)
+#: the envs whose parts come from a task folder (config entry ``task``; no default parts)
+TASK_ENVS = ("MeshExtract",)
+#: the envs that build from their default config
+ALL_ENVS = tuple(name for name in _envs if name not in TASK_ENVS)
+#: every registered env
+ENV_NAMES = tuple(_envs)
 
 
 def _check(name: str) -> None:
     if name not in _envs:
-        raise UserInputError(f"unknown env {name!r}; choose one of {list(ALL_ENVS)}")
+        raise UserInputError(f"unknown env {name!r}; choose one of {list(ENV_NAMES)}")
 
 
 def get_default_config(name: str) -> config_dict.ConfigDict:
@@ -53,4 +64,12 @@ def load(
     return env
 
 
-__all__ = ["ALL_ENVS", "PegHoleEnv", "State", "get_default_config", "load"]
+__all__ = [
+    "ALL_ENVS",
+    "ENV_NAMES",
+    "TASK_ENVS",
+    "PegHoleEnv",
+    "State",
+    "get_default_config",
+    "load",
+]

@@ -24,6 +24,7 @@ from peghole_mjx._mjx import WARP_AVAILABLE, mjx
 from peghole_mjx.control import ControlLimits, ImpedanceController
 from peghole_mjx.control.kinematics import rotvec_from_mat
 from peghole_mjx.envs import iiwa_constants as names
+from peghole_mjx.envs import stuck
 from peghole_mjx.envs.config import apply_overrides, base_config, env_spec, sim_options
 from peghole_mjx.envs.engine_mujoco import MujocoEngine
 from peghole_mjx.envs.engines import ENGINES, FTReading, MjxEngine, Readout, SceneIds
@@ -85,13 +86,21 @@ class PegHoleBase:
         self.representation = resolve_representation(
             self.spec, config.representation, impl=config.impl
         )
-        self._mj_model = build_scene(
+        scene = build_scene(
             self.spec,
             sim=sim_options(config),
             representation=self.representation,
             contact_cap=config.contact_cap,
-        ).compile()
+        )
+        if stuck.enabled(config):  # the breakaway weld (envs/stuck.py); else the scene as is
+            stuck.add_weld(scene, config.stuck)
+        self._mj_model = scene.compile()
         m = self._mj_model
+        #: the stuck joint's weld (equality id), None without one
+        self._weld = None
+        if stuck.enabled(config):
+            stuck.pose_weld(m)
+            self._weld = m.equality(stuck.WELD_NAME).id
         if config.impl == "warp":
             # MuJoCo Warp collides box-box (rect) and capsule-box with its primitive routines
             # only with nativeccd off; the cylinder representation's cylinder-box pairs go
@@ -190,16 +199,18 @@ class PegHoleBase:
         rel = hole_mat.T @ (self._tip_world(r) - hole_pos)
         return -rel[2] / MM
 
-    def contact_wrench(self, reading: FTReading, hole_mat):
+    def contact_wrench(self, reading: FTReading, hole_mat, peg_mass_kg=None):
         """F/T sensor force and torque in the hole frame with the peg's weight removed (N, N m).
 
         The sensor reads the wrench that the flange side applies to the tool side; the static
         part of it is the peg's weight. The remainder is (minus) the contact load on the peg.
+        ``peg_mass_kg``: the peg's mass of this world (a payload draw; None: the preset's).
         """
         R_s = reading.site_mat
         f_world = R_s @ reading.force
         t_world = R_s @ reading.torque
-        f_world = f_world + self._peg_mass * jnp.asarray(self._gravity)  # remove holding force
+        mass = self._peg_mass if peg_mass_kg is None else peg_mass_kg
+        f_world = f_world + mass * jnp.asarray(self._gravity)  # remove holding force
         return hole_mat.T @ f_world, hole_mat.T @ t_world
 
     def _flange_pose(self, r: Readout, info):

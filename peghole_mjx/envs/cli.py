@@ -12,6 +12,7 @@ from peghole_mjx import progress as prog
 from peghole_mjx.envs import contacts as contacts_mod
 from peghole_mjx.envs import rollout as rollout_mod
 from peghole_mjx.envs.engines import CLI_ENGINES, engine_overrides
+from peghole_mjx.envs.mesh_extract import absolute_task
 from peghole_mjx.errors import UserInputError
 from peghole_mjx.geometry.specs import get_preset
 from peghole_mjx.training.evaluate import config_differences
@@ -25,7 +26,9 @@ POLICY_HELP = (
 
 
 def add_parser(sub: argparse._SubParsersAction) -> None:
-    p = sub.add_parser("envs", help=f"batched extraction environments ({', '.join(envs.ALL_ENVS)})")
+    p = sub.add_parser(
+        "envs", help=f"batched extraction environments ({', '.join(envs.ENV_NAMES)})"
+    )
     esub = p.add_subparsers(dest="envs_cmd", metavar="SUBCOMMAND", required=True)
     r = esub.add_parser(
         "rollout",
@@ -56,7 +59,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
 
 def _env_arguments(q: argparse.ArgumentParser) -> None:
     """The options that choose the env, its config and the policy (every envs subcommand)."""
-    q.add_argument("--env", required=True, choices=envs.ALL_ENVS)
+    q.add_argument("--env", required=True, choices=envs.ENV_NAMES)
     q.add_argument("--policy", default="scripted", help=POLICY_HELP)
     q.add_argument(
         "--engine",
@@ -79,6 +82,11 @@ def _env_arguments(q: argparse.ArgumentParser) -> None:
     )
 
 
+def scene_name(config) -> str:
+    """The peg-hole of an env config as shown: its preset, or its task folder."""
+    return config.preset or f"task {config.get('task', '')}"
+
+
 def make_policy(env, name: str):
     """``scripted`` or ``random`` -> ``policy(obs, rng) -> action``."""
     if name == "scripted":
@@ -89,7 +97,9 @@ def make_policy(env, name: str):
 def _env_and_policy(args: argparse.Namespace, quiet: bool = False):
     """``(env, policy, params)`` of ``--env``, ``--policy``, ``--engine``, ``--preset`` and
     ``--set`` (``params`` None for scripted and random)."""
-    overrides = dict(args.overrides)
+    overrides = absolute_task(dict(args.overrides))
+    if args.preset and args.env in envs.TASK_ENVS:
+        raise UserInputError(f"{args.env} takes its parts from a task folder: --set task=DIR")
     if args.preset:
         kind = get_preset(envs.get_default_config(args.env).preset).kind
         if get_preset(args.preset).kind != kind:
@@ -144,7 +154,7 @@ def cmd_rollout(args: argparse.Namespace) -> int:
         print(dumps({**summary, **timing, "engine": env.config.engine}))
     else:
         print(
-            f"{args.env} ({env.config.preset}, engine {env.config.engine}), policy "
+            f"{args.env} ({scene_name(env.config)}, engine {env.config.engine}), policy "
             f"{args.policy}, {summary['episodes']} episodes"
         )
         print(f"  success rate   {summary['success_rate']:.3f}")
@@ -174,7 +184,7 @@ def cmd_contacts(args: argparse.Namespace) -> int:
     fileio.check_out_dir(args.out)
     trace = contacts_mod.record_contacts(env, policy, seed=args.seed)
     trace.write_csv(args.out / "contacts.csv")
-    title = f"{args.env} ({env.config.preset}), policy {args.policy}, seed {args.seed}"
+    title = f"{args.env} ({scene_name(env.config)}), policy {args.policy}, seed {args.seed}"
     contacts_mod.plot_contacts(trace, args.out / "contacts.png", title)
     summary = {"env": args.env, "policy": args.policy, "seed": args.seed, **trace.summary()}
     summary["engine"] = env.config.engine

@@ -25,15 +25,18 @@ from ml_collections import config_dict
 from peghole_mjx.control import GAINS, LIMITS
 from peghole_mjx.envs.reward import REWARD_WEIGHTS
 from peghole_mjx.errors import InfeasibleGeometryError, UserInputError
-from peghole_mjx.geometry.mjcf import CONTACT_CAPS, SimOptions, contact_cap_for
+from peghole_mjx.geometry.mjcf import SimOptions, contact_cap_entry, contact_cap_for
 from peghole_mjx.geometry.parts import resolve_representation
 from peghole_mjx.geometry.specs import MM, PegHoleSpec, get_preset, with_changes
+from peghole_mjx.geometry.task import TaskSpec, load_task
 from peghole_mjx.validation import CONTACT_CAP_FACTOR, RANGES, _num, check_finite_tree
 
 
 def base_config(preset: str) -> config_dict.ConfigDict:
-    """Defaults shared by both tasks (see each task's ``default_config``)."""
-    get_preset(preset)  # an unknown preset fails here
+    """Defaults shared by the tasks (see each task's ``default_config``); ``preset`` "" for a
+    task whose peg-hole is not a preset (MeshExtract: a task folder, ``task``)."""
+    if preset:
+        get_preset(preset)  # an unknown preset fails here
     return config_dict.create(
         preset=preset,
         # a peg-hole other than the preset's (held-out geometries): a JSON object of the
@@ -145,12 +148,52 @@ def base_config(preset: str) -> config_dict.ConfigDict:
             hole_yaw_deg=5.0,  # hole rotation about its axis
             friction_scale=(0.8, 1.2),  # x preset's mu
             stiffness_N_m=(0.0, 0.0),  # CS off: if max > 0, k_xy ~ U(range) per episode
+            # shifts toward a real robot (docs/research/transfer.md), all off by default (each
+            # off value leaves the env's computation as it was, bit for bit). The F/T sensor as
+            # the policy observes it (metrics, reward and the jam rule keep the true wrench):
+            # white Gaussian noise per control step (SD of each force / torque component) ...
+            ft_noise_force_N=0.0,
+            ft_noise_torque_Nm=0.0,
+            # ... plus a bias: an initial offset per episode (Gaussian, SD per component) that
+            # drifts as a random walk (SD per sqrt(s)), carried in state.info["ft_bias"]
+            ft_bias_force_N=0.0,
+            ft_bias_torque_Nm=0.0,
+            ft_drift_force_N_sqrt_s=0.0,
+            ft_drift_torque_Nm_sqrt_s=0.0,
+            # latencies in control steps: the policy sees the observation of this many steps
+            # ago; the robot applies the action of this many steps ago (holding its command
+            # until the first one arrives)
+            obs_latency_steps=0,
+            action_latency_steps=0,
+            # tool-frame calibration error: where the controller believes the tool (tip) frame
+            # is, relative to the true one, drawn per episode uniform in (lo, hi): along the peg
+            # axis (mm, + = towards the flange: an L_C error of this size), across it (mm, in a
+            # random direction) and a tilt of its axis (deg, about a random axis across it)
+            tool_axial_mm=(0.0, 0.0),
+            tool_lateral_mm=(0.0, 0.0),
+            tool_tilt_deg=(0.0, 0.0),
+            # the payload (peg) mass as a factor on the preset's, drawn per episode uniform in
+            # (lo, hi); the robot does not know it: the F/T tare and the law's gravity
+            # compensation keep the nominal mass
+            payload_mass_scale=(1.0, 1.0),
+        ),
+        # a stuck joint (corrosion, glue; docs/guide/stuck.md; envs/stuck.py): the peg starts
+        # welded to the hole and the weld releases for the rest of the episode once the axial
+        # F/T force |F_z| of a control step's substeps reaches the episode's breakaway force,
+        # drawn uniform in breakaway_N (N). Off: no weld in the scene (the env as before)
+        stuck=config_dict.create(
+            enabled=False,
+            breakaway_N=(20.0, 50.0),
+            timeconst_s=0.005,  # the weld's solref time constant (its stiffness), s
         ),
     )
 
 
-def env_spec(config: config_dict.ConfigDict) -> PegHoleSpec:
-    """The peg-hole of an env config: the preset's spec with ``geometry``'s changes."""
+def env_spec(config: config_dict.ConfigDict) -> PegHoleSpec | TaskSpec:
+    """The peg-hole of an env config: the preset's spec with ``geometry``'s changes, or the
+    task folder's parts (the ``task`` entry of MeshExtract's config)."""
+    if "task" in config:
+        return task_spec(config)
     spec = get_preset(config.preset)
     text = config.get("geometry", "")
     if not text:
@@ -179,6 +222,21 @@ def env_spec(config: config_dict.ConfigDict) -> PegHoleSpec:
         return with_changes(spec, **changes)
     except (InfeasibleGeometryError, TypeError) as exc:
         raise UserInputError(f"env config geometry {text}: {exc}") from None
+
+
+def task_spec(config: config_dict.ConfigDict) -> TaskSpec:
+    """The parts of the task folder ``config.task`` (checked whole: geometry/task.py); a
+    task env takes neither a preset nor ``geometry`` changes."""
+    if not config.task:
+        raise UserInputError(
+            "this env needs a task folder: --set env.task=DIR (made by peghole task make or "
+            "peghole task builtin)"
+        )
+    if config.preset or config.get("geometry", ""):
+        raise UserInputError(
+            "a task env takes its parts from env.task: leave preset and geometry empty"
+        )
+    return load_task(config.task)
 
 
 def _is_number(v) -> bool:
@@ -339,11 +397,12 @@ FLAGS = frozenset(
         "obs.stiffness",
         "obs.prev_action",
         "obs.commands",
+        "stuck.enabled",
     }
 )
 #: entries that are text (``representation``: or None, the preset's default); their values are
 #: checked where they are read (the preset, geometry, engine, impl and representation names)
-TEXT = frozenset({"preset", "geometry", "engine", "impl", "representation"})
+TEXT = frozenset({"preset", "geometry", "engine", "impl", "representation", "task"})
 #: entries that are None for "the default" (else a number in range)
 OPTIONAL = frozenset({"contact_cap", "representation"})
 #: entries that hold several numbers (each within the entry's range): how many
@@ -352,7 +411,14 @@ TUPLES = {
     "limits.max_torque_Nm": 3,
     "randomization.friction_scale": 2,
     "randomization.stiffness_N_m": 2,
+    "randomization.tool_axial_mm": 2,
+    "randomization.tool_lateral_mm": 2,
+    "randomization.tool_tilt_deg": 2,
+    "randomization.payload_mass_scale": 2,
+    "stuck.breakaway_N": 2,
 }
+#: the (lo, hi) ranges of the ``randomization`` group (each drawn uniform in it per episode)
+RANDOM_RANGES = tuple(k.split(".", 1)[1] for k in TUPLES if k.startswith("randomization."))
 
 
 def _range_problem(rng, value) -> str | None:
@@ -412,9 +478,11 @@ def check_config_values(config: config_dict.ConfigDict) -> None:
         f"ctrl_dt ({config.ctrl_dt:g} s) must be a whole multiple of sim_dt ({config.sim_dt:g} s)",
     )
     r = config.randomization
-    for key in ("friction_scale", "stiffness_N_m"):
+    for key in RANDOM_RANGES:
         lo, hi = r[key]
         need(lo <= hi, f"randomization.{key} must be a range (lo, hi), lo <= hi, got {r[key]!r}")
+    lo, hi = config.stuck.breakaway_N
+    need(lo <= hi, f"stuck.breakaway_N must be a range (lo, hi), lo <= hi, got {(lo, hi)!r}")
     spec = env_spec(config)
     mu = spec.friction * r.friction_scale[1]
     fr = RANGES["friction"]
@@ -436,7 +504,7 @@ def check_config_values(config: config_dict.ConfigDict) -> None:
     if config.contact_cap is not None:
         rep = resolve_representation(spec, config.representation, impl=config.impl)
         contact_cap_for(spec, rep, int(config.contact_cap))  # below the measured maximum
-        entry = CONTACT_CAPS.get((spec.kind, rep))
+        entry = contact_cap_entry(spec, rep)  # a task folder's own, or CONTACT_CAPS'
         if entry is not None:
             most = CONTACT_CAP_FACTOR * entry.measured_max
             need(

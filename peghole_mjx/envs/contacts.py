@@ -27,6 +27,7 @@ normal force on each hole geom over the episode. ``peghole envs contacts`` runs 
 
 from __future__ import annotations
 
+import copy
 from collections import Counter
 from collections.abc import Callable
 from dataclasses import dataclass
@@ -34,6 +35,7 @@ from pathlib import Path
 from typing import Any
 
 import jax
+import jax.numpy as jnp
 import matplotlib.pyplot as plt
 import mujoco
 import numpy as np
@@ -41,6 +43,7 @@ import numpy as np
 from peghole_mjx import fileio
 from peghole_mjx import progress as prog
 from peghole_mjx.envs import iiwa_constants as names
+from peghole_mjx.envs.engine_mujoco import STATE_SPEC
 from peghole_mjx.envs.extraction import PegHoleEnv
 from peghole_mjx.geometry.specs import MM
 
@@ -231,3 +234,70 @@ def plot_contacts(trace: ContactTrace, path: Path, title: str = "") -> Path:
     fig.savefig(path, dpi=110)
     plt.close(fig)
     return path
+
+
+def max_active_contacts(
+    env: PegHoleEnv,
+    act: Callable[[jax.Array, jax.Array], jax.Array],
+    worlds: int = 4,
+    env_steps: int = 200,
+    seed: int = 0,
+) -> dict[str, int]:
+    """The most active contacts (distance <= 0) in any world after any physics step, ``worlds``
+    worlds of ``env`` (on its ``mujoco`` engine) run for ``env_steps`` env steps with
+    ``act(obs, rng) -> action``; a finished world restarts from its start state.
+
+    How a scene's contact cap is measured (``benchmarks/perf/contact_caps.py`` for the
+    presets): each env step runs in the env with the engine's torque record on
+    (``engine.ctrl_log``); its physics steps are then replayed world by world in one
+    ``MjData`` from the step's start state with the recorded torques and the world's friction,
+    counting after every ``mj_step``. The replay is the env's own step: its end state must
+    equal the env's bit for bit (a RuntimeError otherwise). Returns the maximum, the episodes
+    that ended and the env steps run."""
+    if env.engine.name != "mujoco":
+        raise ValueError(f"max_active_contacts needs the mujoco engine, got {env.engine.name!r}")
+    m = copy.copy(env.engine.model)
+    fric0 = np.array(m.pair_friction)
+    d = mujoco.MjData(m)
+    row = np.empty(env.engine.nstate)
+    reset, step = jax.jit(jax.vmap(env.reset)), jax.jit(jax.vmap(env.step))
+    act_v = jax.jit(jax.vmap(act))
+    state = start = reset(jax.random.split(jax.random.PRNGKey(seed), worlds))
+    key = jax.random.PRNGKey(seed + 1)
+    log: list[np.ndarray] = []
+    most, episodes = 0, 0
+    env.engine.ctrl_log = log
+    try:
+        for _ in range(env_steps):
+            key, sub = jax.random.split(key)
+            prev = state
+            state = step(prev, act_v(prev.obs, jax.random.split(sub, worlds)))
+            jax.block_until_ready(state.obs)
+            ctrl = np.stack(log, axis=1)  # (worlds, substeps, nu)
+            log.clear()
+            data0 = jax.tree.map(np.asarray, prev.data)
+            end = np.asarray(state.data.state)
+            fscale = np.asarray(prev.info["friction_scale"], float)
+            finite = np.asarray(state.metrics["nan"]) == 0
+            for w in range(worlds):
+                m.pair_friction[:] = fric0 * fscale[w]
+                env.engine.to_mjdata(jax.tree.map(lambda x, w=w: x[w], data0), m, d)
+                for tau in ctrl[w]:
+                    d.ctrl[:] = tau
+                    mujoco.mj_step(m, d)
+                    most = max(most, int(np.sum(d.contact.dist[: d.ncon] <= 0.0)))
+                mujoco.mj_getState(m, d, row, STATE_SPEC)
+                if finite[w] and not np.array_equal(row, end[w].view(np.float64)):
+                    raise RuntimeError(f"world {w}: the replayed step differs from the env's")
+            done = np.asarray(state.done) > 0
+            if done.any():
+                episodes += int(done.sum())
+                mask = jnp.asarray(done)
+
+                def pick(n, o, mask=mask):
+                    return jnp.where(mask.reshape((-1,) + (1,) * (n.ndim - 1)), o, n)
+
+                state = jax.tree.map(pick, state, start)
+    finally:
+        env.engine.ctrl_log = None
+    return {"max_active": most, "episodes_ended": episodes, "env_steps": env_steps}

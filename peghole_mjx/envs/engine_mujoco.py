@@ -18,7 +18,10 @@ the positions of the start of the last physics step (``mj_step``'s derived field
 velocities after it.
 
 Per-world randomisation reaches the C engine through per-simulation model fields
-(``Batch.expand("pair_friction")``). A world whose step raises in MuJoCo
+(``Batch.expand("pair_friction")``; with a payload draw also ``body_mass`` and
+``body_inertia`` of the peg, without ``Batch.set_const``: the constants MuJoCo derives from the
+masses at compile time, such as ``body_invweight0``, stay the nominal model's, as on MJX, whose
+per-world model fields are replaced the same way). A world whose step raises in MuJoCo
 (``SimulationError.ids``) or ends non-finite is returned with ``finite`` false: the env ends its
 episode and counts it (``metrics["nan"]``); the batch goes on. ``mjDSBL_AUTORESET`` is set, so
 MuJoCo never silently resets a diverging world to its defaults.
@@ -27,6 +30,7 @@ MuJoCo never silently resets a diverging world to its defaults.
 from __future__ import annotations
 
 import copy
+import functools
 import os
 import threading
 import time
@@ -43,7 +47,7 @@ except ImportError:
     mj_batch = None
 
 from peghole_mjx.control import ImpedanceController, ImpedanceParams
-from peghole_mjx.control.reference import impedance_torque
+from peghole_mjx.control.reference import impedance_torque, tool_centre
 from peghole_mjx.envs.engines import FTReading, Readout, SceneIds, Sense
 from peghole_mjx.errors import UserInputError
 
@@ -86,6 +90,24 @@ class _Pool:
         self.M, self.bias = b.bind("M"), b.bind("qfrc_bias")
         self.sensordata = b.bind("sensordata")
         self.pair_friction = b.expand("pair_friction") if model.npair else None
+        self.body_mass = self.body_inertia = self.xipos = None
+
+    def scale_mass(self, body: int, scale: np.ndarray | None) -> None:
+        """Body ``body``'s mass and inertia times ``scale`` (n,) per world (None: nominal);
+        the fields are expanded on the first call (a pool without a payload draw never is)."""
+        if scale is None and self.body_mass is None:
+            return
+        if self.body_mass is None:
+            m = self.batch.model
+            self._mass0, self._inertia0 = np.array(m.body_mass), np.array(m.body_inertia)
+            self.body_mass = self.batch.expand("body_mass")
+            self.body_inertia = self.batch.expand("body_inertia")
+            self.xipos = self.batch.bind("xipos")
+        s = np.ones(self.batch.nsim) if scale is None else np.asarray(scale, float)
+        self.body_mass[:] = self._mass0
+        self.body_inertia[:] = self._inertia0
+        self.body_mass[:, body] = self._mass0[body] * s
+        self.body_inertia[:, body] = self._inertia0[body] * s[:, None]
 
 
 class MujocoEngine:
@@ -127,6 +149,11 @@ class MujocoEngine:
         self.threads = int(threads) or available_threads()
         self._check_chain(m, ctrl)
         self.nstate = mujoco.mj_stateSize(m, STATE_SPEC)
+        # where eq_active starts in the state row (the components before it in the spec's bit
+        # order), and a float64 1.0 / 0.0 as the row's uint32 word pairs (set_eq_active)
+        before = int(STATE_SPEC) & (int(mujoco.mjtState.mjSTATE_EQ_ACTIVE) - 1)
+        self._eq_active_adr = mujoco.mj_stateSize(m, before)
+        self._on_words = np.array([1.0]).view(np.uint32)
         self._pair_friction0 = np.array(m.pair_friction, float)
         self._q_default = np.array(m.qpos0, float)
         d0 = mujoco.MjData(m)  # the model's defaults, as mjx.make_data's
@@ -196,13 +223,22 @@ class MujocoEngine:
     def _law(self, p: _Pool, pos, mat, vel, prm) -> np.ndarray:
         ctl, body = self.ctrl, self.ctrl.body_id
         R = p.xmat[:, body].reshape(-1, 3, 3)
-        centre = ctl.tip_local[None, :] - np.array([0.0, 0.0, 1.0]) * prm["L_C"][:, None]
-        x_C = p.xpos[:, body] + (R @ centre[..., None])[..., 0]
+        x_C, R = tool_centre(
+            p.xpos[:, body],
+            R,
+            ctl.tip_local,
+            prm["L_C"],
+            prm.get("tool_offset"),
+            prm.get("tool_mat"),
+        )
         J, M = self.centre_jacobian(p, x_C), self.full_inertia(p.M)
         bias, q, qvel = p.bias, p.qpos, p.qvel
+        load = prm.get("load_error")
+        J_g = None if load is None else self.centre_jacobian(p, p.xipos[:, body])[:, :3]
         if not self._all_dofs:
             d, qa = ctl.dadr, ctl.qadr
             J, M, bias, q, qvel = J[:, :, d], M[:, d][:, :, d], bias[:, d], q[:, qa], qvel[:, d]
+            J_g = None if J_g is None else J_g[:, :, d]
         tau, _ = impedance_torque(
             J,
             M,
@@ -222,6 +258,8 @@ class MujocoEngine:
             ctl.limits.max_wrench,
             ctl.ctrl_lo,
             ctl.ctrl_hi,
+            J_g,
+            load,
         )
         return tau
 
@@ -249,7 +287,7 @@ class MujocoEngine:
             ok[np.asarray(exc.ids)] = False
         return ok
 
-    def _host_init(self, q_arm, hole_pos, hole_quat):
+    def _host_init(self, q_arm, hole_pos, hole_quat, *mass_scale):
         lead = q_arm.shape[:-1]
         q_arm = np.asarray(q_arm, float).reshape(-1, q_arm.shape[-1])
         n = q_arm.shape[0]
@@ -265,11 +303,15 @@ class MujocoEngine:
             mq[:, self.ids.hole_mocap] = np.asarray(hole_quat, float).reshape(n, 4)
             if p.pair_friction is not None:
                 p.pair_friction[:] = self._pair_friction0
+            scale = np.asarray(mass_scale[0], float).reshape(n) if mass_scale else None
+            p.scale_mass(self.ids.peg_body, scale)
             ok = self._run(p, p.batch.forward)
             out = self._outputs(p, ok)
         return tuple(o.reshape(lead + o.shape[1:]) for o in out)
 
-    def _host_substeps(self, state, targets, mat, vel, fscale, *prm_leaves):
+    def _host_substeps(self, names, with_mass, state, targets, mat, vel, fscale, *rest):
+        """``rest``: the per-world mass scale when ``with_mass``, then the law's parameters
+        named ``names`` (the fields of ImpedanceParams that are not None)."""
         t_call = time.perf_counter()
         lead = state.shape[:-1]
         state = np.asarray(state).reshape(-1, state.shape[-1])
@@ -280,7 +322,7 @@ class MujocoEngine:
 
         targets = flat(targets, targets.shape[len(lead) :])
         mat, vel = flat(mat, (3, 3)), flat(vel, (3,))
-        names = ImpedanceParams._fields
+        mscale, prm_leaves = (flat(rest[0], ()), rest[1:]) if with_mass else (None, rest)
         prm = {k: flat(v, v.shape[len(lead) :]) for k, v in zip(names, prm_leaves, strict=True)}
         i = self.ids
         n_sub = self.n_substeps
@@ -294,6 +336,7 @@ class MujocoEngine:
                 p.pair_friction[:] = self._pair_friction0 * np.asarray(fscale, float).reshape(
                     n, 1, 1
                 )
+            p.scale_mass(i.peg_body, mscale)
             ok = self._run(p, p.batch.forward)
             t_step = 0.0
             for k in range(n_sub):
@@ -330,14 +373,19 @@ class MujocoEngine:
             S((), np.dtype(bool)),
         )
 
-    def init_data(self, q_arm: jax.Array, hole_pos: jax.Array, hole_quat: jax.Array) -> CData:
-        """The state with the arm joints at ``q_arm`` and the hole mocap at its pose, forward."""
+    def init_data(
+        self, q_arm: jax.Array, hole_pos: jax.Array, hole_quat: jax.Array, mass_scale=None
+    ) -> CData:
+        """The state with the arm joints at ``q_arm`` and the hole mocap at its pose, forward
+        (with the peg's mass and inertia times ``mass_scale`` when given)."""
+        extra = () if mass_scale is None else (mass_scale,)
         out = jax.pure_callback(
             self._host_init,
             self._data_shapes(),
             q_arm,
             hole_pos,
             hole_quat,
+            *extra,
             vmap_method="broadcast_all",
         )
         return CData(*out)
@@ -361,22 +409,36 @@ class MujocoEngine:
         params: ImpedanceParams,
         friction_scale: jax.Array,
         sense: Sense,
+        mass_scale: jax.Array | None = None,
     ):
-        """The control step's substeps in MuJoCo C; returns ``(data, wrenches (n_sub, 6))``."""
+        """The control step's substeps in MuJoCo C; returns ``(data, wrenches (n_sub, 6))``.
+        ``mass_scale``: the peg's mass and inertia factor of the world (None: nominal)."""
+        names = tuple(k for k, v in params._asdict().items() if v is not None)
+        extra = () if mass_scale is None else (mass_scale,)
         out = jax.pure_callback(
-            self._host_substeps,
+            functools.partial(self._host_substeps, names, mass_scale is not None),
             (*self._data_shapes(), *self._reading_shapes),
             data.state,
             targets,
             target_mat,
             target_vel,
             friction_scale,
-            *params,
+            *extra,
+            *(getattr(params, k) for k in names),
             vmap_method="broadcast_all",
         )
         new = CData(*out[:8])
         readings = FTReading(*out[8:])
         return new, jax.vmap(sense)(readings)
+
+    def set_eq_active(self, data: CData, eq: int, active: jax.Array) -> CData:
+        """``data`` with equality constraint ``eq`` switched on where ``active`` (a bool of
+        the world), else off: its ``eq_active`` entry of the integration state row (float64
+        1.0 or 0.0, as uint32 words), which the next step's ``mj_setState`` applies."""
+        i = 2 * (self._eq_active_adr + eq)
+        on = jnp.asarray(self._on_words)
+        words = jnp.where(active, on, jnp.zeros_like(on))
+        return data.replace(state=data.state.at[i : i + 2].set(words))
 
     def to_mjdata(self, data: CData, m: mujoco.MjModel, d: mujoco.MjData) -> None:
         """Write one world's state into a MuJoCo ``MjData`` (rendering), forward done."""

@@ -9,8 +9,12 @@ an engine is only this:
 * :meth:`substeps`: the control step's physics substeps, the impedance law
   (:mod:`peghole_mjx.control`) applied before each, tracking the task's commanded targets;
   returns the new state and the F/T reading of every substep;
+* per world, the friction scale at every step and, with a payload draw, the peg's mass and
+  inertia scale (``mass_scale``, None without one), in both of the above;
 * :meth:`readout`: the few derived quantities the task reads (:class:`Readout`), never
   engine-specific fields.
+* :meth:`set_eq_active`: switch an equality constraint on or off in a state (a stuck joint's
+  weld, :mod:`peghole_mjx.envs.stuck`).
 
 Engines, chosen by the env config entry ``engine``:
 
@@ -148,8 +152,11 @@ class MjxEngine:
         """An ``mjx.Data`` at the model's defaults (no forward pass)."""
         return mjx.make_data(self.model, impl=self.impl, **self._buffers)
 
-    def init_data(self, q_arm: jax.Array, hole_pos: jax.Array, hole_quat: jax.Array):
-        """The state with the arm joints at ``q_arm`` and the hole mocap at its pose, forward."""
+    def init_data(
+        self, q_arm: jax.Array, hole_pos: jax.Array, hole_quat: jax.Array, mass_scale=None
+    ):
+        """The state with the arm joints at ``q_arm`` and the hole mocap at its pose, forward
+        (with the peg's mass and inertia times ``mass_scale`` when given)."""
         i = self.ids
         data = self.make_data()
         data = data.replace(
@@ -157,7 +164,19 @@ class MjxEngine:
             mocap_pos=data.mocap_pos.at[i.hole_mocap].set(hole_pos),
             mocap_quat=data.mocap_quat.at[i.hole_mocap].set(hole_quat),
         )
-        return mjx.forward(self.model, data)
+        return mjx.forward(self.scaled_mass(self.model, mass_scale), data)
+
+    def scaled_mass(self, m, mass_scale):
+        """``m`` with the peg's mass and inertia times ``mass_scale`` (None: ``m`` itself). Under
+        ``vmap`` the replaced fields are per world; the constants MuJoCo derived from the
+        masses when the model was compiled (``body_invweight0``, ...) stay nominal."""
+        if mass_scale is None:
+            return m
+        b = self.ids.peg_body
+        return m.replace(
+            body_mass=m.body_mass.at[b].multiply(mass_scale),
+            body_inertia=m.body_inertia.at[b].multiply(mass_scale),
+        )
 
     def readout(self, data) -> Readout:
         i = self.ids
@@ -188,10 +207,13 @@ class MjxEngine:
         params: ImpedanceParams,
         friction_scale: jax.Array,
         sense: Sense,
+        mass_scale: jax.Array | None = None,
     ):
         """One physics step per row of ``targets`` (n_sub, 3: the compliance centre's commanded
-        position), the law before each; returns ``(data, wrenches (n_sub, 6))``."""
+        position), the law before each; returns ``(data, wrenches (n_sub, 6))``.
+        ``mass_scale``: the peg's mass and inertia factor of the world (None: nominal)."""
         m = self.model.replace(pair_friction=jnp.asarray(self._pair_friction0) * friction_scale)
+        m = self.scaled_mass(m, mass_scale)
 
         def substep(d, pos):
             d, _ = self.ctrl.apply(m, d, Target(pos=pos, mat=target_mat, vel=target_vel), params)
@@ -199,6 +221,13 @@ class MjxEngine:
             return d, sense(self.ft_reading(d))
 
         return jax.lax.scan(substep, data, targets)
+
+    def set_eq_active(self, data, eq: int, active: jax.Array):
+        """``data`` with equality constraint ``eq`` switched on where ``active`` (a bool of
+        the world), else off: MJX's constraint rows read ``eq_active``."""
+        return data.replace(
+            eq_active=data.eq_active.at[eq].set(active.astype(data.eq_active.dtype))
+        )
 
     def to_mjdata(self, data, m: mujoco.MjModel, d: mujoco.MjData) -> None:
         """Write one world's state into a MuJoCo ``MjData`` (rendering), forward done."""

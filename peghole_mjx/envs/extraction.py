@@ -11,6 +11,30 @@ Control. An action moves the commanded tip pose and feed-forward force; the impe
 (:mod:`peghole_mjx.control`) runs at every physics substep and tracks the commanded pose with
 its compliance centre ``L_C`` above the tip. See :class:`PegHoleEnv` for the tables.
 
+Shifts toward a real robot (the ``randomization`` group's F/T, latency, tool-frame and payload
+entries; all off by default, and then left out of the computation, so the published policies'
+envs compute exactly what they did before the entries existed):
+
+* the F/T sensor as the policy observes it: white noise per control step and a bias (an offset
+  at the start that drifts as a random walk, ``info["ft_bias"]``), and with a payload draw the
+  tare error (the nominal peg weight removed from a heavier or lighter peg's). Only the
+  observation sees them: the metrics, the reward and the jam rule keep the true contact wrench,
+  so a shifted cell measures the same physical forces as the nominal one;
+* latencies: the policy observes the observation of ``obs_latency_steps`` steps ago
+  (``info["obs_buffer"]``), the robot applies the action of ``action_latency_steps`` steps ago
+  (``info["action_buffer"]``) and holds its command until the first one arrives;
+* a tool-frame calibration error: the law (both twins) and the commands use the believed tool
+  frame (``info["tool_offset"]``, ``info["tool_mat"]``), which starts at the believed tip (a
+  robot entering impedance mode holds the pose it measures); depth, success and metrics use
+  the true tip;
+* the payload: the peg's mass and inertia per world times ``info["payload_scale"]`` (both
+  engines), while the F/T tare and the law's gravity compensation keep the nominal mass.
+
+A stuck joint (the ``stuck`` group, off by default and then absent from the scene and the
+state): the peg starts welded in its hole and the weld releases once the axial F/T force
+reaches the episode's breakaway force (:mod:`peghole_mjx.envs.stuck`); ``info`` and ``metrics``
+then hold ``released``, ``release_time_s`` and ``breakaway_N``.
+
 The pieces of a step that hold a number of the config are pure functions of the config
 (:func:`decode_action`, :func:`impedance_params`, :func:`observation`, :func:`termination`,
 :func:`~peghole_mjx.envs.reward.reward_terms`, and
@@ -29,9 +53,18 @@ from ml_collections import config_dict
 from peghole_mjx.control import ImpedanceParams, make_params
 from peghole_mjx.control.kinematics import newton_ik, rot_z
 from peghole_mjx.envs import iiwa_constants as names
+from peghole_mjx.envs import stuck
 from peghole_mjx.envs.base import PegHoleBase, State
-from peghole_mjx.envs.metrics import zero_metrics
-from peghole_mjx.envs.randomization import randomization_fn
+from peghole_mjx.envs.metrics import STUCK_METRICS, zero_metrics
+from peghole_mjx.envs.randomization import (
+    breakaway_draw,
+    ft_drift_sd,
+    ft_noise_sd,
+    ft_sensor_shifted,
+    payload_on,
+    randomization_fn,
+    tool_error_on,
+)
 from peghole_mjx.envs.reward import reward_terms
 from peghole_mjx.geometry.mjcf import TOOL_DOWN_MAT
 from peghole_mjx.geometry.specs import MM
@@ -40,6 +73,26 @@ from peghole_mjx.geometry.specs import MM
 def clean_action(action: jax.Array) -> jax.Array:
     """The action clipped to [-1, 1], NaN entries set to 0 (the step also flags the world)."""
     return jnp.clip(jnp.where(jnp.isnan(action), 0.0, action), -1.0, 1.0)
+
+
+def hold_command(decoded, info, valid):
+    """The decoded command (:func:`decode_action`'s tuple) where ``valid``, else the command in
+    effect (``info``): a robot with action latency holds its command until the first action
+    arrives."""
+    held = (info["cmd_tip"], info["wrench_ff"], info["k_xy"], info["k_rot"], info["L_C"])
+    return tuple(jnp.where(valid, new, old) for new, old in zip(decoded, held, strict=True))
+
+
+def latency_buffers(c: config_dict.ConfigDict, obs, action_size: int) -> dict[str, jax.Array]:
+    """A reset's latency buffers (``randomization`` group; none without latency), oldest
+    first: the observations of the last ``obs_latency_steps`` steps (all the first one) and
+    the ``action_latency_steps`` actions sent but not yet applied (none sent: zeros, held)."""
+    r, out = c.randomization, {}
+    if r.obs_latency_steps:
+        out["obs_buffer"] = jnp.tile(obs, (r.obs_latency_steps, 1))
+    if r.action_latency_steps:
+        out["action_buffer"] = jnp.zeros((r.action_latency_steps, action_size))
+    return out
 
 
 def compliance_actions(
@@ -262,6 +315,8 @@ class PegHoleEnv(PegHoleBase):
         compilation cache, and this half is most of the reset's compile time."""
         fixed = self.fixed_compliance
         draw = self.randomization_fn(rng, self._config.randomization, fixed["k_xy"])
+        if stuck.enabled(self._config):
+            draw = draw._replace(breakaway_N=breakaway_draw(rng, self._config.stuck))
         yaw = draw.hole_yaw
         hole_pos = jnp.asarray(self._hole_pos0) + draw.hole_offset
         hole_mat = rot_z(yaw)
@@ -279,11 +334,19 @@ class PegHoleEnv(PegHoleBase):
         """The second half of :meth:`reset`: the engine's first state at ``start``'s joint
         angles, the commanded pose errors, the episode's info and first observation."""
         fixed = self.fixed_compliance
+        rc = self._config.randomization
         draw, hole_pos, hole_mat = start["draw"], start["hole_pos"], start["hole_mat"]
-        data = self.engine.init_data(start["q"], hole_pos, start["hole_quat"])
+        mass_scale = draw.payload_scale if payload_on(rc) else None
+        data = self.engine.init_data(start["q"], hole_pos, start["hole_quat"], mass_scale)
         r = self.engine.readout(data)
-        # commanded pose errors (hole frame): lateral offset in a disc, tilt about x and y
-        cmd_tip = self._tip_world(r) + hole_mat @ draw.lateral_error
+        shifts = {}
+        if tool_error_on(rc):
+            shifts |= {"tool_offset": draw.tool_offset, "tool_mat": draw.tool_mat}
+        if payload_on(rc):
+            shifts["payload_scale"] = draw.payload_scale
+        # commanded pose errors (hole frame): lateral offset in a disc, tilt about x and y; the
+        # command starts at the tip the controller believes (the true one without a tool error)
+        cmd_tip = self._tool_tip_world(r, shifts) + hole_mat @ draw.lateral_error
         cmd_mat = hole_mat @ draw.tilt_mat @ jnp.asarray(TOOL_DOWN_MAT)
         info = {
             "rng": draw.rng,
@@ -309,25 +372,69 @@ class PegHoleEnv(PegHoleBase):
             # the F/T sensor is zeroed at the start (no contact there; the arm is not yet
             # under control, so the raw reading would hold its free-fall transient)
             "wrench": jnp.zeros(6),
+            **shifts,
         }
-        obs = self._obs(r, info)
-        return State(data, obs, jnp.zeros(()), jnp.zeros(()), zero_metrics(), info)
+        metrics = zero_metrics(stuck=self._weld is not None)
+        if self._weld is not None:  # the weld holds at the start (the engines' eq_active0)
+            info |= {"breakaway_N": draw.breakaway_N, "released": jnp.zeros(())}
+            info["release_time_s"] = jnp.zeros(())
+            metrics["breakaway_N"] = draw.breakaway_N
+        key = None
+        if ft_sensor_shifted(rc):
+            info["rng"], key = jax.random.split(draw.rng)
+            info["ft_bias"] = draw.ft_bias
+        obs = self._obs(r, info, self._sensed_wrench(info["wrench"], info, key))
+        info |= latency_buffers(self._config, obs, self.action_size)
+        return State(data, obs, jnp.zeros(()), jnp.zeros(()), metrics, info)
+
+    # ------------------------------------------------------------------ shifts
+    def _tool_tip_world(self, r, info):
+        """The tip the controller believes (world): the true tip without a tool-frame error."""
+        if "tool_offset" not in info:
+            return self._tip_world(r)
+        return r.peg_pos + r.peg_mat @ (jnp.asarray(self._tip_local) + info["tool_offset"])
+
+    def _sensed_wrench(self, wrench, info, key):
+        """The F/T wrench the policy observes (hole frame): the true ``wrench`` plus, with the
+        shifts on, the tare error of a payload draw, the bias and white noise (``key``)."""
+        rc = self._config.randomization
+        if "payload_scale" in info:  # the nominal weight removed from the true one
+            error = (1.0 - info["payload_scale"]) * self._peg_mass * jnp.asarray(self._gravity)
+            wrench = wrench + jnp.concatenate([info["hole_mat"].T @ error, jnp.zeros(3)])
+        if key is not None:
+            wrench = wrench + info["ft_bias"] + ft_noise_sd(rc) * jax.random.normal(key, (6,))
+        return wrench
+
+    def _delayed_obs(self, obs, info):
+        """The observation the policy sees with ``obs_latency_steps`` of latency (``info``'s
+        buffer updated in place); ``obs`` itself without."""
+        if "obs_buffer" not in info:
+            return obs
+        buf = info["obs_buffer"]
+        info["obs_buffer"] = jnp.concatenate([buf[1:], obs[None]])
+        return buf[0]
 
     # ------------------------------------------------------------------ step
     def _decode_action(self, action, info):
         return decode_action(action, info, self._config, self.compliance_actions)
 
-    def _obs(self, r, info) -> jax.Array:
+    def _obs(self, r, info, wrench=None) -> jax.Array:
+        """The observation (no latency); ``wrench``: the sensed one if it differs from
+        ``info["wrench"]`` (:meth:`_sensed_wrench`)."""
         pos, rot = self._flange_pose(r, info)
         cmd_offset = None
         if self._config.obs.commands:
-            cmd_offset = info["hole_mat"].T @ (info["cmd_tip"] - self._tip_world(r))
+            cmd_offset = info["hole_mat"].T @ (info["cmd_tip"] - self._tool_tip_world(r, info))
+        if wrench is not None and wrench is not info["wrench"]:
+            info = {**info, "wrench": wrench}
         return observation(
             pos, rot, info, self._config, self._flange_z0, self.peg_length_m, cmd_offset
         )
 
     def _physics(self, data, info, cmd_tip_prev, cmd_tip, wrench_ff, k_xy, k_rot, L_C):
-        """Run the substeps with the impedance law tracking a linearly moving target."""
+        """Run the substeps with the impedance law tracking a linearly moving target:
+        ``(data, wrench, peak_fz)``, the F/T wrench averaged over the substeps and, with a stuck
+        joint, the largest |F_z| of a substep (N; None without one)."""
         c = self._config
         cmd_mat = info["cmd_mat"]
         axis = cmd_mat[:, 2]  # peg axis (towards the tip) of the commanded pose
@@ -335,29 +442,49 @@ class PegHoleEnv(PegHoleBase):
         # force feed-forward: hole frame -> compliance (commanded) frame
         ff = cmd_mat.T @ (info["hole_mat"] @ wrench_ff)
         params = impedance_params(c, k_xy, k_rot, L_C, ff, self._init_q[self._qadr])
+        if "tool_offset" in info:  # the law holds the tool frame it believes
+            params = params._replace(tool_offset=info["tool_offset"], tool_mat=info["tool_mat"])
+        mass_scale, peg_mass = None, None
+        if "payload_scale" in info:  # the law compensates the nominal weight only
+            mass_scale = info["payload_scale"]
+            peg_mass = self._peg_mass * mass_scale
+            load = (mass_scale - 1.0) * self._peg_mass * jnp.asarray(self._gravity)
+            params = params._replace(load_error=load.astype(params.L_C.dtype))
         # the compliance centre's commanded position at the end of each substep: the tip
         # target moving linearly from the last command to this one
         frac = jnp.arange(1, self._n_substeps + 1, dtype=jnp.float32) / self._n_substeps
         tips = cmd_tip_prev + frac[:, None] * (cmd_tip - cmd_tip_prev)
         targets = tips - L_C * axis
 
-        def sense(reading):
-            f, t = self.contact_wrench(reading, info["hole_mat"])
+        def sense(reading):  # the true contact wrench (the true peg weight removed)
+            f, t = self.contact_wrench(reading, info["hole_mat"], peg_mass)
             return jnp.concatenate([f, t])
 
+        extra = {} if mass_scale is None else {"mass_scale": mass_scale}
         data, wrenches = self.engine.substeps(
-            data, targets, cmd_mat, vel, params, info["friction_scale"], sense
+            data, targets, cmd_mat, vel, params, info["friction_scale"], sense, **extra
         )
         # the F/T reading averaged over the control period (a sensor's anti-aliasing filter):
         # single-substep contact impulses do not reach the observation or the force metrics
         wrench = jnp.mean(jnp.where(jnp.isfinite(wrenches), wrenches, 0.0), axis=0)
-        return data, wrench
+        peak_fz = None
+        if self._weld is not None:  # the largest |F_z| of a substep
+            peak_fz = jnp.max(jnp.abs(jnp.where(jnp.isfinite(wrenches[:, 2]), wrenches[:, 2], 0.0)))
+        return data, wrench, peak_fz
 
     def step(self, state: State, action: jax.Array) -> State:
         c = self._config
+        rc = c.randomization
         info = dict(state.info)
-        cmd_tip, wrench_ff, k_xy, k_rot, L_C = self._decode_action(action, info)
-        data, wrench = self._physics(
+        if "action_buffer" in info:  # the action sent latency steps ago is applied now
+            buf = info["action_buffer"]
+            info["action_buffer"] = jnp.concatenate([buf[1:], clean_action(action)[None]])
+            decoded = self._decode_action(buf[0], info)
+            valid = info["step"] >= buf.shape[0]  # before: none has arrived, the command held
+            cmd_tip, wrench_ff, k_xy, k_rot, L_C = hold_command(decoded, info, valid)
+        else:
+            cmd_tip, wrench_ff, k_xy, k_rot, L_C = self._decode_action(action, info)
+        data, wrench, peak_fz = self._physics(
             state.data, info, info["cmd_tip"], cmd_tip, wrench_ff, k_xy, k_rot, L_C
         )
         finite = self.engine.readout(data).finite
@@ -367,6 +494,15 @@ class PegHoleEnv(PegHoleBase):
         # a NaN world keeps its last finite state and ends its episode; the batch goes on
         data = jax.tree.map(lambda new, old: jnp.where(finite, new, old), data, state.data)
         nan = 1.0 - finite.astype(jnp.float32)
+        if self._weld is not None:  # the weld releases at the end of the step that breaks it
+            released = stuck.released(
+                jnp.where(finite, peak_fz, 0.0), info["breakaway_N"], info["released"]
+            )
+            data = self.engine.set_eq_active(data, self._weld, released == 0)
+            now = released > info["released"]
+            t_now = (info["step"] + 1).astype(jnp.float32) * c.ctrl_dt
+            info.update(release_time_s=jnp.where(now, t_now, info["release_time_s"]))
+            info["released"] = released
         r = self.engine.readout(data)
         overflow = r.overflow  # warp only: contacts were dropped, end the episode
 
@@ -424,5 +560,13 @@ class PegHoleEnv(PegHoleBase):
             k_xy_N_m=jnp.asarray(k_xy, jnp.float32),
             k_rot_Nm_rad=jnp.asarray(k_rot, jnp.float32),
         )
-        obs = self._obs(r, info)
+        if self._weld is not None:
+            metrics.update({k: info[k] for k in STUCK_METRICS})
+        key = None
+        if ft_sensor_shifted(rc):  # the bias drifts; the noise is drawn anew each step
+            rng, k_drift, key = jax.random.split(info["rng"], 3)
+            walk = ft_drift_sd(rc) * jnp.sqrt(c.ctrl_dt) * jax.random.normal(k_drift, (6,))
+            info.update(rng=rng, ft_bias=info["ft_bias"] + walk)
+        obs = self._obs(r, info, self._sensed_wrench(wrench, info, key))
+        obs = self._delayed_obs(obs, info)
         return State(data, obs, reward, done, metrics, info)

@@ -37,15 +37,25 @@ EPISODE_METRICS = (
 #: readings of the current step
 STEP_METRICS = ("fz_N", "fxy_N", "depth_mm", "k_xy_N_m", "k_rot_Nm_rad")
 ENV_METRICS = (*(f"reward/{t}" for t in REWARD_TERMS), *EPISODE_METRICS, *STEP_METRICS)
+#: a stuck joint's entries (envs/stuck.py), in ``State.metrics`` and in the per-episode record
+#: only with the env config's ``stuck.enabled``: 1 once the weld has released, the time of the
+#: release from the episode start (s, 0 while it holds) and the episode's breakaway force (N)
+STUCK_METRICS = ("released", "release_time_s", "breakaway_N")
 #: undiscounted return and sum_i gamma^i r_i (eq 4.1 with E9's exponent) of an episode
 RETURN_KEYS = ("return", "discounted_return")
 #: what describes a finished episode
 EPISODE_RECORD = (*EPISODE_METRICS, *RETURN_KEYS)
 
 
-def zero_metrics() -> dict[str, jax.Array]:
-    """``State.metrics`` of a reset state."""
-    return {n: jnp.zeros(()) for n in ENV_METRICS}
+def zero_metrics(stuck: bool = False) -> dict[str, jax.Array]:
+    """``State.metrics`` of a reset state (with ``stuck``: also :data:`STUCK_METRICS`)."""
+    return {n: jnp.zeros(()) for n in (*ENV_METRICS, *(STUCK_METRICS if stuck else ()))}
+
+
+def record_keys(metrics: Mapping) -> tuple[str, ...]:
+    """The per-episode record's keys for an env whose ``State.metrics`` is ``metrics``:
+    :data:`EPISODE_RECORD`, and :data:`STUCK_METRICS` where the env has a stuck joint."""
+    return EPISODE_RECORD + (STUCK_METRICS if STUCK_METRICS[0] in metrics else ())
 
 
 def zero_returns(shape=()) -> dict[str, jax.Array]:
@@ -132,6 +142,22 @@ def summarize(e: Mapping[str, np.ndarray]) -> dict[str, float | int]:
         else:  # mean_of_successes
             out[s.name] = float(v[ok].mean()) if ok.any() else float("nan")
     return out
+
+
+def stuck_summary(e: Mapping[str, np.ndarray]) -> dict[str, float | int] | None:
+    """A stuck joint's statistics from per-episode arrays (None without one): episodes whose
+    weld released, their share, their mean release time (s; NaN when none released) and the
+    mean breakaway force of all episodes (N)."""
+    if STUCK_METRICS[0] not in e:
+        return None
+    rel = np.asarray(e["released"]) > 0
+    t = np.asarray(e["release_time_s"])
+    return {
+        "released": int(rel.sum()),
+        "release_rate": float(rel.mean()),
+        "mean_release_time_s": float(t[rel].mean()) if rel.any() else float("nan"),
+        "mean_breakaway_N": float(np.mean(e["breakaway_N"])),
+    }
 
 
 #: the sums :func:`episode_totals` returns (``episodes`` and the per-episode entries summed)

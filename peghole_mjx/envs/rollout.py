@@ -31,9 +31,9 @@ from peghole_mjx import progress as prog
 from peghole_mjx.envs.config import leaves
 from peghole_mjx.envs.extraction import PegHoleEnv
 from peghole_mjx.envs.metrics import (
-    EPISODE_RECORD,
     STATS,
     accumulate_return,
+    record_keys,
     summarize,
     zero_returns,
 )
@@ -82,6 +82,7 @@ RolloutSummary.__doc__ = "The episode statistics of a rollout (peghole_mjx.envs.
 class RolloutResult:
     """Per-episode arrays and timing of a batched rollout."""
 
+    #: one array per key of the env's record (:func:`~peghole_mjx.envs.metrics.record_keys`)
     per_episode: dict[str, np.ndarray]
     compile_s: float
     run_s: float
@@ -128,7 +129,7 @@ def _batch_reset(env: PegHoleEnv) -> Callable:
 def _batch_start(states):
     """``(states, (record, returns), finished)``: a batch's carry at its reset."""
     n = states.reward.shape[0]
-    record = {k: jnp.zeros(n) for k in EPISODE_RECORD}
+    record = {k: jnp.zeros(n) for k in record_keys(states.metrics)}
     return states, (record, zero_returns(n)), jnp.zeros(n, bool)
 
 
@@ -159,7 +160,7 @@ def make_runner(env: PegHoleEnv, policy: Callable, chunk: int, with_params: bool
         r = jnp.where(finished, 0.0, new.reward)
         acc = accumulate_return(acc, r, gamma)
         ended = {**new.metrics, **acc}
-        record = {k: jnp.where(done_now, ended[k], record[k]) for k in EPISODE_RECORD}
+        record = {k: jnp.where(done_now, ended[k], record[k]) for k in record}
         return (states, (record, acc), finished | done_now, rng, params), None
 
     def run(states, record, finished, rng, params):
@@ -300,7 +301,7 @@ def check_not_all_nan(result: RolloutResult, env: PegHoleEnv, params: Any = None
 def _config_changes(env: PegHoleEnv) -> list[tuple[str, Any]]:
     """``(flat key, value)`` of the env config's entries that differ from its env's defaults
     (the engine choice left out: it is set per machine)."""
-    if env.env_name not in envs.ALL_ENVS:
+    if env.env_name not in envs.ENV_NAMES:
         return []
     default = dict(leaves(envs.get_default_config(env.env_name)))
     return [

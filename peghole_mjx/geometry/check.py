@@ -46,7 +46,7 @@ def min_pair_distance(
     return min(mujoco.mj_geomDistance(m, d, g1, g2, distmax, None) for g1, g2 in pairs)
 
 
-def _free_travel(
+def free_travel(
     m: mujoco.MjModel,
     d: mujoco.MjData,
     q0: np.ndarray,
@@ -113,8 +113,8 @@ def effective_clearance_range_mm(
     for k in range(n_directions):
         phi = math.pi * k / n_directions  # half circle: each direction is measured both ways
         u = np.array([math.cos(phi), math.sin(phi), 0.0])
-        t_pos = _free_travel(m, d, q0, u, pairs, nominal / 4, 1e-4 * nominal)
-        t_neg = _free_travel(m, d, q0, -u, pairs, nominal / 4, 1e-4 * nominal)
+        t_pos = free_travel(m, d, q0, u, pairs, nominal / 4, 1e-4 * nominal)
+        t_neg = free_travel(m, d, q0, -u, pairs, nominal / 4, 1e-4 * nominal)
         travels.append(t_pos + t_neg)
     return min(travels) / MM, max(travels) / MM
 

@@ -28,7 +28,12 @@ from peghole_mjx.geometry.parts import (
     peg_tip_z_m,
     resolve_representation,
 )
-from peghole_mjx.geometry.specs import MM, DualSpec, PegHoleSpec, RectSpec
+from peghole_mjx.geometry.specs import MM, DualSpec, RectSpec
+from peghole_mjx.geometry.specs import PegHoleSpec as PresetSpec
+from peghole_mjx.geometry.task import TaskSpec
+
+#: what a scene is built from: a preset's (or custom) spec, or a task folder's parts
+PegHoleSpec = PresetSpec | TaskSpec
 
 #: where the robot model lives: inside an installed package, or the repository's mjcf/
 _PKG_MJCF = Path(__file__).resolve().parents[1] / "_mjcf"
@@ -265,13 +270,21 @@ CONTACT_CAPS: dict[tuple[str, str], ContactCap] = {
 }
 
 
+def contact_cap_entry(spec: PegHoleSpec, representation: str) -> ContactCap | None:
+    """The measured contact cap of a scene: :data:`CONTACT_CAPS`'s entry, or a task folder's
+    own (measured when the folder was made); None where none was measured."""
+    if isinstance(spec, TaskSpec):
+        return ContactCap(measured_max=spec.contact_measured_max, cap=spec.contact_cap)
+    return CONTACT_CAPS.get((spec.kind, representation))
+
+
 def contact_cap_for(spec: PegHoleSpec, representation: str, cap: int | None = None) -> int:
     """The ``max_contact_points`` of a scene: ``cap`` checked, or the measured default (0: none).
 
     Raises :class:`UserInputError` when ``cap`` is below the measured maximum of active
     contacts of this scene (rollouts would lose contacts).
     """
-    entry = CONTACT_CAPS.get((spec.kind, representation))
+    entry = contact_cap_entry(spec, representation)
     if cap is None:
         return entry.cap if entry else 0
     if cap < 0:
@@ -288,6 +301,14 @@ def contact_cap_for(spec: PegHoleSpec, representation: str, cap: int | None = No
 def block_top_z(spec: PegHoleSpec) -> float:
     """World height of the hole mouth: the block (depth + floor) stands on the floor."""
     return (spec.hole_depth_mm + spec.floor_mm) * MM
+
+
+def start_depth_m(spec: PegHoleSpec, sim: SimOptions) -> float:
+    """Depth of the peg tip below the mouth in the start pose (keyframe ``inserted``): the
+    hole depth less ``sim.tip_gap_mm``, or a task folder's start pose (made the same way)."""
+    if isinstance(spec, TaskSpec):
+        return spec.start_depth_mm * MM
+    return (spec.hole_depth_mm - sim.tip_gap_mm) * MM
 
 
 def check_edges_fit(spec: PegHoleSpec, rep: str) -> None:
@@ -381,7 +402,7 @@ def build_scene(
             objtype=mujoco.mjtObj.mjOBJ_SITE,
         )
         if ik:
-            target_tool_z = top_z - spec.hole_depth_mm * MM + sim.tip_gap_mm * MM + tip
+            target_tool_z = top_z - start_depth_m(spec, sim) + tip
             q = solve_tool_ik(s, np.array([HOLE_XY_M[0], HOLE_XY_M[1], target_tool_z]))
             s.add_key(name="inserted", qpos=q.tolist())
     else:

@@ -52,6 +52,8 @@ from scipy.spatial import ConvexHull
 
 from peghole_mjx.errors import UserInputError
 from peghole_mjx.geometry.specs import MM, DualSpec, PegHoleSpec, RectSpec
+from peghole_mjx.geometry.task import REPRESENTATION as TASK_REPRESENTATION
+from peghole_mjx.geometry.task import TaskSpec
 
 GeomKind = Literal["box", "mesh", "capsule", "cylinder"]
 
@@ -74,15 +76,24 @@ IMPL_REPRESENTATIONS = {
 
 
 def resolve_representation(
-    spec: PegHoleSpec, representation: str | None = None, impl: str | None = None
+    spec: PegHoleSpec | TaskSpec, representation: str | None = None, impl: str | None = None
 ) -> str:
     """The collision representation a scene of ``spec`` is built with, validated.
 
     ``None`` selects the default (``capsule`` for the dual parts, ``edges`` for the rect
     parts). ``impl`` (``"jax"``, ``"warp"``, ``"c"`` or
     ``None`` for no check) must be able to collide it: ``cylinder`` needs MuJoCo Warp (or C).
-    Raises :class:`UserInputError` with one line naming the problem.
+    Raises :class:`UserInputError` with one line naming the problem. A task folder's parts
+    (:class:`~peghole_mjx.geometry.task.TaskSpec`) have one representation, its convex pieces
+    (``hulls``).
     """
+    if isinstance(spec, TaskSpec):
+        if representation not in (None, TASK_REPRESENTATION):
+            raise UserInputError(
+                f"representation {representation!r}: a task folder's parts are its convex "
+                f"pieces, representation {TASK_REPRESENTATION!r} (or null)"
+            )
+        return TASK_REPRESENTATION
     if representation is not None and representation not in (
         *REPRESENTATIONS,
         *RECT_REPRESENTATIONS,
@@ -232,11 +243,17 @@ def peg_centres_m(spec: DualSpec) -> np.ndarray:
     return np.array([[half, 0.0], [-half, 0.0]])
 
 
-def hole_parts(spec: PegHoleSpec, representation: str | None = None) -> list[ConvexPart]:
+def hole_parts(spec: PegHoleSpec | TaskSpec, representation: str | None = None) -> list[ConvexPart]:
     """Convex pieces of the hole block in the hole frame (mouth at z = 0, material below).
 
-    ``representation``: see :func:`resolve_representation` (``None``: the default).
+    ``representation``: see :func:`resolve_representation` (``None``: the default). A task
+    folder's hole part: its convex pieces (``hole_hull000``, ...).
     """
+    if isinstance(spec, TaskSpec):
+        return [
+            ConvexPart(f"hole_hull{i:03d}", "mesh", vertices=np.asarray(h))
+            for i, h in enumerate(spec.hole_hulls)
+        ]
     depth = spec.hole_depth_mm * MM
     wall, floor = spec.wall_mm * MM, spec.floor_mm * MM
     if isinstance(spec, RectSpec):
@@ -348,7 +365,7 @@ def hole_parts(spec: PegHoleSpec, representation: str | None = None) -> list[Con
 
 
 def peg_parts(
-    spec: PegHoleSpec, single_hull: bool = False, representation: str | None = None
+    spec: PegHoleSpec | TaskSpec, single_hull: bool = False, representation: str | None = None
 ) -> list[ConvexPart]:
     """Convex pieces of the peg in the peg frame (mount at z = 0, tip at z = peg_tip_z_m).
 
@@ -360,6 +377,13 @@ def peg_parts(
     (and MuJoCo, for a single non-convex mesh) collides. For the dual peg the hull fills the
     space between the pegs, so it cannot enter the holes (thesis Sec 1.6, result R6).
     """
+    if isinstance(spec, TaskSpec):  # a task folder's peg: its convex pieces
+        if single_hull:
+            return [ConvexPart("peg_hull", "mesh", vertices=np.concatenate(spec.peg_hulls))]
+        return [
+            ConvexPart(f"peg_hull{i:03d}", "mesh", vertices=np.asarray(h))
+            for i, h in enumerate(spec.peg_hulls)
+        ]
     if single_hull:
         verts = np.concatenate([p.corners() for p in peg_parts(spec, representation="mesh")])
         return [ConvexPart("peg_hull", "mesh", vertices=verts)]
@@ -401,7 +425,7 @@ def peg_parts(
     return parts
 
 
-def peg_tip_z_m(spec: PegHoleSpec) -> float:
+def peg_tip_z_m(spec: PegHoleSpec | TaskSpec) -> float:
     """Distance from the peg mount to the peg tip along the peg's +z (metres)."""
     extra = spec.bridge_mm if isinstance(spec, DualSpec) else 0.0
     return (spec.length_mm + extra) * MM

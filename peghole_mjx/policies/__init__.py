@@ -237,8 +237,8 @@ def check_meta(meta: Any, where: str) -> dict[str, Any]:
     )
     env = meta.get("env")
     need(
-        isinstance(env, str) and env in envs.ALL_ENVS,
-        f"env {env!r} is not one of {list(envs.ALL_ENVS)}",
+        isinstance(env, str) and env in envs.ENV_NAMES,
+        f"env {env!r} is not one of {list(envs.ENV_NAMES)}",
     )
     train_config = meta.get("train_config")
     need(

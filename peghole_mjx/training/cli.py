@@ -7,8 +7,9 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from peghole_mjx.envs import ALL_ENVS
+from peghole_mjx.envs import ENV_NAMES
 from peghole_mjx.envs.engines import CLI_ENGINES, engine_overrides
+from peghole_mjx.envs.mesh_extract import absolute_task
 from peghole_mjx.errors import UserInputError
 from peghole_mjx.lazy import command
 from peghole_mjx.training.config import TRAINING_ENV_DEFAULTS, TrainConfig, load_train_config
@@ -32,7 +33,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
         "Hyperparameters: train/configs/<ENV>.json (profiles full | cpu | quick). Uses all "
         "local GPUs (pmap).",
     )
-    t.add_argument("--env", choices=ALL_ENVS, help="required unless --resume")
+    t.add_argument("--env", choices=ENV_NAMES, help="required unless --resume")
     t.add_argument(
         "--compliance-strategy",
         choices=("on", "off"),
@@ -105,7 +106,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     e.add_argument("checkpoint", nargs="+")
     e.add_argument(
         "--env",
-        choices=ALL_ENVS,
+        choices=ENV_NAMES,
         help="the env the policy must have been trained on (refused in one line if not)",
     )
     e.add_argument(
@@ -178,7 +179,7 @@ def train_config_from_args(args: argparse.Namespace) -> TrainConfig:
     if not args.env:
         raise UserInputError("--env and --out are required (or --resume DIR)")
     cs = None if args.compliance_strategy is None else args.compliance_strategy == "on"
-    overrides = dict(args.overrides)
+    overrides = absolute_task(dict(args.overrides), "env.task")
     if "env.engine" not in overrides:  # --set env.engine=... wins over --engine
         eng = engine_overrides(getattr(args, "engine", None) or "auto")
         overrides = {**{f"env.{k}": v for k, v in eng.items()}, **overrides}

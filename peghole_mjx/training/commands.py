@@ -11,6 +11,7 @@ from pathlib import Path
 
 from peghole_mjx import fileio
 from peghole_mjx.envs.engines import engine_overrides
+from peghole_mjx.envs.mesh_extract import absolute_task
 from peghole_mjx.errors import UserInputError
 from peghole_mjx.lock import RunLock
 from peghole_mjx.policies import load_policy
@@ -203,7 +204,7 @@ def _env_sets(args: argparse.Namespace) -> dict:
         over["preset"] = args.preset
     if getattr(args, "engine", None):
         over = {**engine_overrides(args.engine), **over}
-    return over
+    return absolute_task(over)
 
 
 def _in_policy_folder(path: Path) -> bool:
@@ -214,7 +215,7 @@ def _in_policy_folder(path: Path) -> bool:
 def _print_evaluation(res: dict) -> None:
     p, b, th = res["policy"], res["baseline"], res["thesis"]
     print(
-        f"{res['policy_path']}: {res['env']} ({res['preset']}, engine "
+        f"{res['policy_path']}: {res['env']} ({res['preset'] or res.get('task')}, engine "
         f"{res.get('engine', 'mjx')}), {res['episodes']} episodes, seed {res['seed']}"
     )
     for key, (trained, now) in res.get("differs_from_training", {}).items():
@@ -231,6 +232,10 @@ def _print_evaluation(res: dict) -> None:
         t = "" if thesis is None else fmt.format(thesis)
         base = "-" if b is None else fmt.format(b[key])
         print(f"{name:22s}{fmt.format(p[key]):>10s}{base:>10s}{t:>11s}")
+    stuck = res.get("stuck")  # a stuck joint: episodes whose weld released
+    if stuck:
+        base = "-" if stuck["baseline"] is None else str(stuck["baseline"]["released"])
+        print(f"{'weld released':22s}{stuck['policy']['released']:>10d}{base:>10s}")
     red = res["force_reduction_pct"]
     if red is None:
         return

@@ -25,7 +25,7 @@ from peghole_mjx import fileio
 from peghole_mjx import progress as prog
 from peghole_mjx.envs import get_default_config
 from peghole_mjx.envs.config import apply_overrides
-from peghole_mjx.envs.metrics import EPISODE_RECORD
+from peghole_mjx.envs.metrics import EPISODE_RECORD, STUCK_METRICS, stuck_summary
 from peghole_mjx.envs.rollout import SCRIPTED_SPEED_M_S, rollout, scripted_policy
 from peghole_mjx.errors import CorruptFileError, UserInputError
 from peghole_mjx.policies import PolicyBundle, load_policy
@@ -67,6 +67,8 @@ def _config_key(env, ignored=()) -> str:
     cfg = json.loads(env.config.to_json())
     if not cfg.get("geometry"):  # the preset's own geometry: keys as before the entry existed
         cfg.pop("geometry", None)
+    if not cfg.get("stuck", {}).get("enabled"):  # no stuck joint: keys as before the group
+        cfg.pop("stuck", None)
     for dotted in ignored:
         *path, leaf = dotted.split(".")
         node = cfg
@@ -111,8 +113,9 @@ SET_ASIDE = ".damaged"
 
 def slice_problem(path: Path) -> str | None:
     """None if the slice file ``path`` holds exactly the episode records of its episodes (one
-    finite-size float array per :data:`EPISODE_RECORD` key, of the length its name says),
-    else what is wrong with it (random bytes, pickled data, truncation, other arrays)."""
+    finite-size float array per :data:`EPISODE_RECORD` key, and with a stuck joint per
+    :data:`STUCK_METRICS` key, of the length its name says), else what is wrong with it (random
+    bytes, pickled data, truncation, other arrays)."""
     m = SLICE_NAME.fullmatch(path.name)
     n = int(m.group(2)) if m else None
     try:
@@ -122,7 +125,8 @@ def slice_problem(path: Path) -> str | None:
         if isinstance(exc, FileNotFoundError | PermissionError):
             raise
         return f"unreadable: {' '.join(str(exc).split()) or type(exc).__name__}"
-    if set(arrays) != set(EPISODE_RECORD):
+    extra = set(arrays) - set(EPISODE_RECORD)  # a stuck joint's keys: all or none
+    if not set(EPISODE_RECORD) <= set(arrays) or extra not in (set(), set(STUCK_METRICS)):
         return "not the episode records of this version"
     for k, x in arrays.items():
         if not np.issubdtype(x.dtype, np.floating) or x.shape != (n,):
@@ -279,15 +283,16 @@ def evaluate(
     batch: int | None = None,
     parts_dir: str | Path | None = None,
     policy_only: bool = False,
-    baselines: dict[str, dict[str, Any]] | None = None,
+    baselines: dict[str, tuple[dict[str, Any], dict]] | None = None,
     cross: bool = False,
+    keep_episodes: bool = False,
 ) -> dict[str, Any]:
     """``{"policy", "baseline", "force_reduction_pct", "episodes", ...}`` (see module doc).
 
     ``progress``: each phase on stderr (:mod:`peghole_mjx.progress`): building the env, each
     rollout's compile (first run only; cached after) and its bar of env steps.
     ``policy_only``: skip the baseline (``baseline`` and ``force_reduction_pct`` are None).
-    ``baselines``: baseline summaries by episodes key (filled here), so several policies
+    ``baselines``: baseline results by episodes key (filled here), so several policies
     evaluated on the same episodes and env run the baseline once.
     ``env``: an already built env of the policy's config (reuses its compiled rollouts).
     ``env_overrides`` (or ``env``) other than the policy's training env config are refused
@@ -297,7 +302,9 @@ def evaluate(
     of ``batch`` episodes are saved there, and a rerun with the same policy, env, seed and
     batch loads them (a long evaluation survives an interruption or is extended to more
     episodes; see :func:`rollout`); another policy evaluated in the same folder reuses the
-    baseline's slices (:func:`_parts_dirs`).
+    baseline's slices (:func:`_parts_dirs`). ``keep_episodes``: the result also holds the
+    per-episode records (``per_episode``: ``{"policy": {key: array}, "baseline": ...}``, keys
+    of :data:`~peghole_mjx.envs.metrics.EPISODE_RECORD`), for comparisons paired by episode.
     """
     bundle = policy if isinstance(policy, PolicyBundle) else load_policy(policy)
     if env is not None:
@@ -323,7 +330,7 @@ def evaluate(
         label="policy rollout",
         **kw,
     )
-    pol, base = res_p.summary().as_dict(), None
+    pol, base, base_episodes = res_p.summary().as_dict(), None, None
     if not policy_only:
         key = json.dumps(
             [_config_key(env, BASELINE_IGNORED_CONFIG), seed, episodes, batch or episodes]
@@ -338,8 +345,14 @@ def evaluate(
                 label="scripted baseline rollout",
                 **kw,
             )
-            baselines[key] = res_b.summary().as_dict()
-        base = baselines[key]
+            baselines[key] = (res_b.summary().as_dict(), res_b.per_episode)
+        base, base_episodes = baselines[key]
+    extra = {}
+    if env.config.stuck.enabled:  # a stuck joint: how often each method broke the weld
+        base_stuck = None if base_episodes is None else stuck_summary(base_episodes)
+        extra["stuck"] = {"policy": stuck_summary(res_p.per_episode), "baseline": base_stuck}
+    if keep_episodes:
+        extra["per_episode"] = {"policy": res_p.per_episode, "baseline": base_episodes}
     return {
         "policy": pol,
         "baseline": base,
@@ -351,9 +364,11 @@ def evaluate(
         "preset": env.config.preset,
         "engine": env.config.engine,  # the physics engine (docs/research/performance.md)
         "geometry": env.config.geometry or None,  # spec changes from the preset's, if any
+        **({"task": env.config.task} if "task" in env.config else {}),  # MeshExtract's folder
         "compliance_strategy": bool(env.config.compliance_strategy),
         # {key: [trained, evaluated]}: empty for an evaluation as trained
         "differs_from_training": diff,
         "policy_path": str(bundle.path),
         "thesis": THESIS_RL,
+        **extra,
     }

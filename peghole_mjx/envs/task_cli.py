@@ -1,0 +1,111 @@
+"""``peghole task``: make a task folder (a trainable peg-hole for MeshExtract) and show one.
+
+A command group of its own rather than an option of ``peghole models decompose``: a task folder
+is more than the decomposed model (``models decompose`` writes an MJCF of the free peg and a
+report): its frames and start pose, its checks on the pieces, the contact cap measured by
+rolling out the env, hashes and a format version, and it is what ``--set env.task=DIR`` of
+``envs``, ``train`` and ``evaluate`` reads. Both commands run one pipeline
+(:mod:`peghole_mjx.envs.task_make`); the commands: :mod:`peghole_mjx.envs.task_commands`.
+"""
+
+from __future__ import annotations
+
+import argparse
+from pathlib import Path
+
+from peghole_mjx.geometry import task as tf
+from peghole_mjx.geometry.shapes import BUILTINS
+from peghole_mjx.lazy import command
+from peghole_mjx.validation import arg
+
+COMMANDS = "peghole_mjx.envs.task_commands"
+
+
+def _common(q: argparse.ArgumentParser) -> None:
+    q.add_argument("--out", required=True, type=Path, help="the task folder to write")
+    q.add_argument("--friction", type=arg("friction"), default=0.266, help="Coulomb friction")
+    q.add_argument(
+        "--peg-mass", type=arg("mass_kg"), help="peg mass in kg (default: PLA, 1200 kg/m^3)"
+    )
+    q.add_argument(
+        "--max-hulls",
+        type=arg("max_hulls"),
+        default=tf.MAX_HULLS,
+        help=f"cap of convex pieces per part (default {tf.MAX_HULLS})",
+    )
+    q.add_argument(
+        "--max-contacts",
+        type=arg("max_contacts"),
+        default=tf.MAX_CONTACTS,
+        help="cap of active contacts measured in the env's rollouts (default "
+        f"{tf.MAX_CONTACTS}, the env's contact buffer naconmax)",
+    )
+    q.add_argument(
+        "--contact-worlds",
+        type=arg("contact_worlds"),
+        default=4,
+        help="worlds of the rollouts that measure the contacts",
+    )
+    q.add_argument(
+        "--contact-steps",
+        type=arg("contact_steps"),
+        default=200,
+        help="env steps of each of those rollouts (scripted and random policy)",
+    )
+    q.add_argument("--json", action="store_true", help="print task.json")
+
+
+def add_parser(sub: argparse._SubParsersAction) -> None:
+    p = sub.add_parser("task", help="make a task folder (any peg-hole) for the MeshExtract env")
+    tsub = p.add_subparsers(dest="task_cmd", metavar="SUBCOMMAND", required=True)
+    m = tsub.add_parser(
+        "make",
+        help="a task folder from your peg and hole meshes (CoACD)",
+        description="PEG_MESH and HOLE_MESH: STL/OBJ/PLY, closed solids, in their assembled "
+        "pose (peg fully inserted), +z = extraction. Checks the pair (peg in its hole, no "
+        "overlap, no undercut), decomposes both with CoACD, checks the pieces (start pose, "
+        "clearance, an extraction sweep along +z, a drop test), measures the contacts in the "
+        "MeshExtract env and writes the folder (all of it or nothing). Then: peghole train "
+        "--env MeshExtract --set env.task=DIR.",
+    )
+    m.add_argument("peg_mesh", type=Path)
+    m.add_argument("hole_mesh", type=Path)
+    m.add_argument("--units", default="mm", choices=["mm", "cm", "m"], help="mesh units")
+    m.add_argument("--threshold", type=arg("threshold"), default=0.01, help="CoACD concavity")
+    m.add_argument("--resolution", type=arg("resolution"), default=2000, help="CoACD sampling")
+    m.add_argument("--preprocess-resolution", type=arg("preprocess_resolution"), default=50)
+    m.add_argument(
+        "--max-convex-hull", type=arg("max_convex_hull"), default=-1, help="CoACD's own hull cap"
+    )
+    m.add_argument(
+        "--max-ch-vertex",
+        type=arg("max_hull_vertices"),
+        default=tf.MAX_HULL_VERTICES,
+        help=f"vertices per piece: CoACD's decimation and the cap (<= {tf.MAX_HULL_VERTICES})",
+    )
+    m.add_argument("--mcts-iterations", type=arg("mcts_iterations"), default=150)
+    m.add_argument("--seed", type=arg("seed"), default=0, help="CoACD's seed")
+    _common(m)
+    m.set_defaults(func=command(f"{COMMANDS}:cmd_make"))
+
+    b = tsub.add_parser(
+        "builtin",
+        help="a task folder of a built-in irregular part (exact pieces)",
+        description="The built-in parts (geometry/shapes.py): "
+        + ", ".join(BUILTINS)
+        + ", at a diametral clearance of 0.1-0.4 mm, through the same checks as task make.",
+    )
+    b.add_argument("name", choices=BUILTINS)
+    b.add_argument(
+        "--clearance-mm",
+        type=arg("builtin_clearance_mm"),
+        default=0.2,
+        help="diametral clearance, 0.1-0.4 mm (default 0.2)",
+    )
+    _common(b)
+    b.set_defaults(func=command(f"{COMMANDS}:cmd_builtin"))
+
+    s = tsub.add_parser("show", help="check a task folder (format, hashes) and summarise it")
+    s.add_argument("folder", type=Path)
+    s.add_argument("--json", action="store_true", help="print task.json")
+    s.set_defaults(func=command(f"{COMMANDS}:cmd_show"))
