@@ -89,13 +89,29 @@ def fmt_ci(x: dict) -> str:
     return f"{x['value']:.1f} % [{x['ci95'][0]:.1f}, {x['ci95'][1]:.1f}]"
 
 
-def wilson(k: int, n: int, z: float = 1.96) -> list[float]:
-    """Wilson score interval of a binomial proportion k / n."""
+def _wilson(k: int, n: int, z: float) -> tuple[float, float]:
     p = k / n
     d = 1 + z * z / n
     c = (p + z * z / (2 * n)) / d
     h = z * math.sqrt(p * (1 - p) / n + z * z / (4 * n * n)) / d
-    return [round(c - h, 4), round(c + h, 4)]
+    return c - h, c + h
+
+
+def wilson(k: int, n: int, z: float = 1.96) -> list[float]:
+    """Wilson score interval of a binomial proportion k / n."""
+    lo, hi = _wilson(k, n, z)
+    return [round(lo, 4), round(hi, 4)]
+
+
+def newcombe(k1: int, n1: int, k2: int, n2: int, z: float = 1.96) -> list[float]:
+    """Newcombe's hybrid score interval (his method 10, Stat. Med. 1998) of the difference
+    k1/n1 - k2/n2 of two independent proportions, from their Wilson intervals."""
+    p1, p2 = k1 / n1, k2 / n2
+    (l1, u1), (l2, u2) = _wilson(k1, n1, z), _wilson(k2, n2, z)
+    d = p1 - p2
+    lo = d - math.sqrt((p1 - l1) ** 2 + (u2 - p2) ** 2)
+    hi = d + math.sqrt((u1 - p1) ** 2 + (p2 - l2) ** 2)
+    return [round(lo, 4), round(hi, 4)]
 
 
 def parse_overrides(items: list[str] | None) -> dict:

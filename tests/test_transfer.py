@@ -10,6 +10,7 @@ import pytest
 
 from benchmarks.evals import transfer
 from peghole_mjx.envs.config import env_spec
+from peghole_mjx.errors import UserInputError
 from peghole_mjx.policies import PRETRAINED, load_policy
 from peghole_mjx.training.evaluate import requested_config
 
@@ -93,7 +94,6 @@ def test_reference_puts_a_robust_variant_into_the_reference_env():
     """--reference: the robust variant's randomisation entries are reset to the reference's
     (every one that differs, nothing else); any other difference is refused in one line."""
     from peghole_mjx.envs.config import apply_overrides
-    from peghole_mjx.errors import UserInputError
 
     ref = requested_config(load_policy("rect_hard"))
     robust = apply_overrides(
@@ -115,3 +115,32 @@ def test_reference_puts_a_robust_variant_into_the_reference_env():
     other = apply_overrides(robust, {"action.max_ff_xy_N": 1.0})
     with pytest.raises(UserInputError, match="differ beyond the randomisation.*max_ff_xy_N"):
         transfer.reference_overrides(other, ref)
+
+
+def test_newcombe_interval_meets_the_published_examples():
+    """Newcombe (1998), Table II: 56/70 - 48/80 -> [0.0524, 0.3339]; 9/10 - 3/10 -> [0.1705,
+    0.8090]."""
+    from benchmarks.common import newcombe
+
+    assert newcombe(56, 70, 48, 80) == [0.0524, 0.3339]
+    assert newcombe(9, 10, 3, 10) == [0.1705, 0.809]
+
+
+def test_robust_rule_takes_the_worst_cells_and_publishes_only_above_zero():
+    def doc(name, rates, fz=1.0):
+        cells = [
+            {"cell": f"c{i}", "policy": {"success_rate": r, "mean_fz_N": fz}}
+            for i, r in enumerate(rates)
+        ]
+        return {"policy_name": name, "complete": True, "episodes_per_cell": 128, "cells": cells}
+
+    ref = doc("ref", [1.0, 122 / 128, 1.0])
+    v = transfer.robust_verdict(doc("rob", [1.0, 1.0]), ref)
+    assert v["reference_worst"]["cell"] == "c1" and v["publish"]  # 128/128 vs 122/128
+    v = transfer.robust_verdict(doc("rob", [1.0, 127 / 128]), ref)
+    assert v["robust_worst"]["successes"] == 127 and not v["publish"]  # interval holds 0
+    tie = doc("t", [0.5, 0.5])
+    tie["cells"][1]["policy"]["mean_fz_N"] = 9.0
+    assert transfer.worst_cell(tie)["cell"] == "c1"  # ties: the higher force
+    with pytest.raises(UserInputError, match="incomplete"):
+        transfer.robust_verdict({**ref, "complete": False}, ref)

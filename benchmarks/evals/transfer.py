@@ -46,7 +46,15 @@ import numpy as np
 from tqdm import tqdm
 
 import peghole_mjx  # noqa: F401  (sets the XLA CPU flag before JAX starts)
-from benchmarks.common import EVALS_RESULTS, ROOT, device_label, out_file, rel, table
+from benchmarks.common import (
+    EVALS_RESULTS,
+    ROOT,
+    device_label,
+    newcombe,
+    out_file,
+    rel,
+    table,
+)
 from benchmarks.evals.cross_engine import paired_difference
 from benchmarks.evals.hard_variants import summarise
 from peghole_mjx import fileio
@@ -545,6 +553,76 @@ def transfer_table() -> str:
                 out.append(text)
             lines.append(f"| {name} | " + " | ".join(out) + " |")
     return "\n".join(lines)
+
+
+def worst_cell(doc: dict) -> dict:
+    """The worst cell of a matrix (the robust-policy rule, transfer_decisions.txt): the lowest
+    policy success rate, ties broken by the higher mean |F_z|."""
+    return min(doc["cells"], key=lambda c: (c["policy"]["success_rate"], -c["policy"]["mean_fz_N"]))
+
+
+def robust_verdict(robust: dict, reference: dict) -> dict:
+    """The declared rule: publish iff the Newcombe 95 % interval of (robust worst-cell success
+    minus the reference's worst-cell success) lies above zero. Both matrices must have every
+    cell, and the same episodes per cell."""
+    for d in (robust, reference):
+        if not d.get("complete"):
+            raise UserInputError(f"the {d['policy_name']} matrix is incomplete: no verdict")
+    if robust["episodes_per_cell"] != reference["episodes_per_cell"]:
+        raise UserInputError("the two matrices differ in episodes per cell: no verdict")
+    a, b = worst_cell(robust), worst_cell(reference)
+    n = robust["episodes_per_cell"]
+    ka, kb = round(a["policy"]["success_rate"] * n), round(b["policy"]["success_rate"] * n)
+    ci = newcombe(ka, n, kb, n)
+    return {
+        "robust_worst": {"cell": a["cell"], "successes": ka, "mean_fz_N": a["policy"]["mean_fz_N"]},
+        "reference_worst": {
+            "cell": b["cell"],
+            "successes": kb,
+            "mean_fz_N": b["policy"]["mean_fz_N"],
+        },
+        "episodes": n,
+        "difference": round((ka - kb) / n, 4),
+        "newcombe_ci95": ci,
+        "publish": ci[0] > 0,
+    }
+
+
+@table("transfer_robust")
+def transfer_robust_table() -> str:
+    """Each robust variant's matrix (a file with ``reference``) against its reference's: the
+    worst cells and the declared publication rule's verdict."""
+    lines = []
+    for path in sorted(EVALS_RESULTS.glob("transfer_*.json")):
+        d = json.loads(path.read_text())
+        if not d.get("reference"):
+            continue
+        ref_path = path.with_name(path.name.replace(d["policy_name"], d["reference"], 1))
+        if not ref_path.exists():
+            lines.append(f"`{d['policy_name']}`: no committed matrix of `{d['reference']}`.")
+            continue
+        try:
+            v = robust_verdict(d, json.loads(ref_path.read_text()))
+        except UserInputError as err:
+            lines.append(f"`{d['policy_name']}`: {err}.")
+            continue
+        r, f = v["robust_worst"], v["reference_worst"]
+        n = v["episodes"]
+        lo, hi = v["newcombe_ci95"]
+        lines += [
+            "| policy | worst cell | success | mean F_z N |",
+            "|---|---|---:|---:|",
+            f"| `{d['policy_name']}` | {r['cell']} | {r['successes']}/{n} | {r['mean_fz_N']:.2f} |",
+            f"| `{d['reference']}` | {f['cell']} | {f['successes']}/{n} | {f['mean_fz_N']:.2f} |",
+            "",
+            f"Difference {v['difference']:+.4f}, Newcombe 95 % [{lo:+.4f}, {hi:+.4f}]: "
+            + (
+                "**published** (the interval lies above 0)."
+                if v["publish"]
+                else "**not published** (the interval does not lie above 0)."
+            ),
+        ]
+    return "\n".join(lines) or "Not run yet: no robust variant's matrix is committed."
 
 
 # ----------------------------------------------------------------------------- command

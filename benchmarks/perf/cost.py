@@ -18,7 +18,8 @@ For RectExtract (edges, the default, and box) and DualExtract in each MJX-JAX re
 * the HBM roofline derived from the env-step bytes for an H100 (3.35 TB/s) and an H200
   (4.8 TB/s): ``bandwidth / bytes per world-step`` physics steps/s, an ESTIMATE (un-fused HLO
   over-counts what fused GPU kernels move; the solver's 20 iterations are counted once);
-* compile time of ``jit(vmap(env.step))`` for 8 worlds (lowering + XLA compile, CPU);
+* compile time of ``jit(vmap(env.step))`` for 8 worlds (lowering + XLA compile, CPU; wall
+  clock and the process's CPU time; the persistent compilation cache off);
 * with ``--speed``: CPU physics steps/s of the dual representations side by side in ONE run
   (``throughput.run_job``, each row a fresh subprocess: mjx-jax at 1 and 8 worlds, the
   throughput sweep's own chunked scan, its compile time), and the capsule/mesh ratio.
@@ -107,6 +108,20 @@ def measure(
     finally:
         mjcf.CONTACT_CAPS.clear()
         mjcf.CONTACT_CAPS.update(saved)
+    return {
+        "env": name,
+        "representation": rep,
+        "contact_cap": contact_cap if contact_cap is not None else "default",
+        "geometry": geometry,
+        **measure_env(env, compile_worlds),
+    }
+
+
+def measure_env(env, compile_worlds: int = 8) -> dict:
+    """The cost measures of a built MJX env (any scene; see the module docstring): its sizes,
+    ``mjx.Data`` bytes per world, XLA bytes and FLOPs per world of the env step, the physics
+    step and its stages, the roofline estimates and the env step's compile time for
+    ``compile_worlds`` worlds."""
     mx = env.mjx_model
     key = jax.random.PRNGKey(0)
     shape = jax.eval_shape(env.reset, key)
@@ -114,10 +129,6 @@ def measure(
     act = jax.ShapeDtypeStruct((env.action_size,), np.float32)
     t0 = time.perf_counter()
     out: dict = {
-        "env": name,
-        "representation": rep,
-        "contact_cap": contact_cap if contact_cap is not None else "default",
-        "geometry": geometry,
         "n_geoms": int(env.mj_model.ngeom),
         "n_pairs": int(env.mj_model.npair),
         "contacts_allocated": int(shape.data._impl.contact.dist.shape[0]),
@@ -154,11 +165,20 @@ def measure(
         for g, bw in GPU_BANDWIDTH.items()
     }
     batched = _batched(shape, compile_worlds)
-    t0 = time.perf_counter()
+    t0, c0 = time.perf_counter(), time.process_time()
     jax.jit(jax.vmap(env.step)).lower(batched, _batched(act, compile_worlds)).compile()
     out["env_step_compile_s"] = round(time.perf_counter() - t0, 1)
+    # the process's CPU time (all its threads): less sensitive than the wall clock to the load
+    out["env_step_compile_cpu_s"] = round(time.process_time() - c0, 1)
     out["env_step_compile_worlds"] = compile_worlds
     return out
+
+
+def without_persistent_cache() -> None:
+    """Turn JAX's persistent compilation cache (on by default in peghole_mjx) off in this
+    process, before anything compiles: a compile time measured is then a compile, not a load
+    of an earlier run's result."""
+    jax.config.update("jax_enable_compilation_cache", False)
 
 
 def speed(worlds: list[int], min_time: float, chunk: int, timeout: float) -> list[dict]:
@@ -336,6 +356,7 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--out", type=out_file, default=None)
     ap.add_argument("--note", default="")
     args = ap.parse_args(argv)
+    without_persistent_cache()
     label = device_label(gpu_kind())
     out_path = args.out or PERF_RESULTS / f"cost_{label}.json"
     want = [v.split(":") for v in args.variants.split(",")]
