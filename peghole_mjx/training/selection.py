@@ -11,13 +11,13 @@ from __future__ import annotations
 
 from pathlib import Path
 
+from peghole_mjx.training.logs import read_metrics
+
 KEEP = ("eval/episodes", "eval/success_rate", "eval/mean_time_s", "eval/mean_fz_N")
 
 
 def eval_rows(run: Path) -> list[dict[str, str]]:
     """The evaluation rows of a run's ``metrics.csv`` (step > 0)."""
-    from peghole_mjx.training.plots import read_metrics
-
     return [r for r in read_metrics(run) if int(r["step"]) > 0]
 
 
