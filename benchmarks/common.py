@@ -17,6 +17,7 @@ import argparse
 import ast
 import csv
 import importlib.metadata
+import io
 import json
 import math
 import multiprocessing as mp
@@ -280,6 +281,21 @@ def write_csv(path: Path | str, rows: Sequence[dict]) -> Path:
         w.writeheader()
         for r in rows:
             w.writerow(r)
+    return path
+
+
+def write_rows(path: Path | str, rows: Iterable[dict], fields: Sequence[str] | None = None) -> Path:
+    """Write any result rows as a CSV (``fields``: the columns, default the first row's keys;
+    a row with another key is an error), atomically. The throughput rows have their own
+    checked writer, :func:`write_csv`."""
+    rows = list(rows)
+    fields = list(fields if fields is not None else rows[0])
+    text = io.StringIO()
+    w = csv.DictWriter(text, fieldnames=fields, extrasaction="raise", lineterminator="\n")
+    w.writeheader()
+    w.writerows(rows)
+    path = Path(path)
+    fileio.write_text(path, text.getvalue())
     return path
 
 

@@ -85,6 +85,18 @@ def test_csv_writer_has_exactly_the_issue_columns(tmp_path):
     assert "," not in common.versions_str()  # one CSV field
 
 
+def test_rows_writer_keeps_the_columns_and_refuses_a_stray_key(tmp_path):
+    """``write_rows``: the first row's keys (or ``fields``) in order, one line per row; a row
+    with another key is refused and the file already there is left as it was."""
+    path = common.write_rows(tmp_path / "r.csv", iter([{"b": 1, "a": None}, {"b": 2, "a": 0.5}]))
+    assert path.read_text() == "b,a\n1,\n2,0.5\n"
+    common.write_rows(path, [{"a": 1}], fields=["a", "b"])
+    assert path.read_text() == "a,b\n1,\n"
+    with pytest.raises(ValueError, match="c"):
+        common.write_rows(path, [{"a": 1}, {"a": 2, "c": 3}])
+    assert path.read_text() == "a,b\n1,\n"
+
+
 def test_max_rss_sees_this_process_allocating():
     """A fresh process (no earlier peak to hide under) that touches 200 MiB reports it."""
     code = (

@@ -3,7 +3,8 @@
 Each process steps its own 4 of the 8 worlds; after the replay prefill and one training call
 both must hold bit-identical learners (actor, critics, targets, temperature, optimiser states
 and the observation normaliser, whose statistics count both processes' observations), while
-their worlds differ.
+their worlds differ. The env runs on the ``mujoco`` engine (the learner's collectives are the
+same on either engine; an MJX train call compiles for minutes in each process).
 """
 
 from __future__ import annotations
@@ -32,7 +33,8 @@ from peghole_mjx.treenames import named_leaves
 
 tiny = {"num_envs": 8, "steps_per_call": 10, "eval_every": 400, "num_eval_envs": 8,
         "batch_size": 128, "grad_updates_per_step": 8, "min_replay_size": 80,
-        "max_replay_size": 20000, "env.episode_length": 25}
+        "max_replay_size": 20000, "env.episode_length": 25,
+        "env.engine": "mujoco", "env.mujoco_threads": 1}
 cfg = load_train_config("RectExtract", "quick", tiny, compliance_strategy=True)
 tr = SACTrainer(load(cfg.env, config_overrides=cfg.env_overrides), cfg)
 carry = tr.init_carry(cfg.seed)

@@ -417,7 +417,7 @@ def test_geometry_entry_changes_the_preset_spec_and_refuses_bad_changes():
 def test_observed_commands_are_the_feed_forward_and_the_commanded_tip_offset():
     """``obs.commands``: at reset the feed-forward is 0 and the commanded tip sits at the
     drawn lateral error from the tip (hole frame), exactly what reset commands."""
-    env = envs.load(ENV, config_overrides={"obs.commands": True})
+    env = envs.load(ENV, config_overrides={"obs.commands": True, "engine": "mujoco"})
     key = jax.random.PRNGKey(3)
     obs = np.asarray(jax.jit(env.reset)(key).obs)
     assert env.observation_size == envs.load(ENV).observation_size + 6 == obs.shape[0]

@@ -2,6 +2,8 @@
 
 One single-world env and one two-world vector env (RectExtract, the cheap ``box`` parts, short
 episodes) are built per module, so each jitted reset/step compiles once for all tests here.
+They run on the ``mujoco`` engine: the adapters call the env's ``reset`` and ``step`` and never
+the engine below them (an MJX graph compiles for one to two minutes per env on a 2-core CPU).
 """
 
 import numpy as np
@@ -15,12 +17,13 @@ pytestmark = pytest.mark.slow
 
 N_WORLDS = 2
 VECTOR_EPISODE = 4  # env steps: short, so that the autoreset test reaches the time limit
+ENGINE = {"engine": "mujoco", "mujoco_threads": 1}
 
 
 @pytest.fixture(scope="module")
 def single():
     env = PegHoleGymEnv(
-        "RectExtract", config_overrides={"representation": "box", "episode_length": 16}
+        "RectExtract", config_overrides={"representation": "box", "episode_length": 16, **ENGINE}
     )
     yield env
     env.close()
@@ -31,7 +34,7 @@ def vector():
     env = PegHoleVectorEnv(
         "RectExtract",
         num_envs=N_WORLDS,
-        config_overrides={"representation": "box", "episode_length": VECTOR_EPISODE},
+        config_overrides={"representation": "box", "episode_length": VECTOR_EPISODE, **ENGINE},
     )
     yield env
     env.close()

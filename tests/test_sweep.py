@@ -145,7 +145,10 @@ def test_contact_check_bad_input_is_one_line(capsys):
 
 
 # ---- a real tiny sweep: runs, writes, resumes -------------------------------------------
-FAST = cx.ExperimentConfig(speed_m_s=0.1, settle_s=0.1, chunk_steps=400)
+#: the sweep and the contact check run on the experiment's ``mujoco`` engine (float64 MuJoCo C,
+#: seconds; the MJX experiment compiles for minutes and is tested in test_experiment.py): the
+#: sweep's grid, pairing, files and resume sit above the engine
+FAST = cx.ExperimentConfig(speed_m_s=0.1, settle_s=0.1, chunk_steps=400, engine="mujoco")
 
 
 @pytest.fixture(scope="module")
@@ -206,7 +209,9 @@ def test_widening_a_grid_reuses_the_slices_already_run(tiny_sweep):
 
 
 def test_contact_check_runs_one_world():
-    run = cc.run_variant("rect-2", cc.VARIANTS["experiment"], worlds=1, progress=False)
+    run = cc.run_variant(
+        "rect-2", cc.VARIANTS["experiment"], worlds=1, progress=False, engine="mujoco"
+    )
     (w,) = run["worlds"]
     assert not w["nan"] and math.isfinite(w["penetration_um"])
     assert set(run["summary"]["pass"]) == {

@@ -3,8 +3,8 @@
 All tests share one tiny configuration (8 worlds, 25-step episodes), so the graphs are
 compiled once per session (and cached on disk for the subprocesses). The worlds run on the
 ``mujoco`` engine, the CPU default of ``peghole train``: what is tested here (learning, resets,
-checkpoints, resume, evaluation) is the driver's, the same on either engine. Training through
-the MJX engine is tested in test_distributed.py.
+checkpoints, resume, evaluation) is the driver's, the same on either engine. One training call
+through the MJX engine is tested here too (:func:`test_a_training_call_through_the_mjx_engine`).
 """
 
 from __future__ import annotations
@@ -52,6 +52,30 @@ def trained(tmp_path_factory):
     run = TrainingRun(tiny_config(num_timesteps=LEARN_STEPS), out, progress=False, render=False)
     summary = run.run()
     return run, summary
+
+
+@pytest.mark.slow  # compiles the MJX env inside SAC's training call: one to two minutes
+def test_a_training_call_through_the_mjx_engine():
+    """The learner with its worlds on MJX: after the prefill, one training call of 2 worlds
+    takes gradient steps, changes the policy and leaves every learner array finite."""
+    from peghole_mjx.envs import load
+    from peghole_mjx.training.sac import SACTrainer
+    from peghole_mjx.treenames import named_leaves
+
+    small = {"num_envs": 2, "num_eval_envs": 2, "steps_per_call": 5, "batch_size": 8}
+    small |= {"grad_updates_per_step": 1, "min_replay_size": 10, "hidden_layer_sizes": [16, 16]}
+    cfg = tiny_config(**small, **{"env.episode_length": 10, "env.engine": "mjx"})
+    env = load(cfg.env, config_overrides=cfg.env_overrides)
+    assert env.engine.name == "mjx"
+    trainer = SACTrainer(env, cfg)
+    carry, _ = trainer.prefill(trainer.init_carry(cfg.seed))
+    before = named_leaves(jax.tree.map(lambda x: np.asarray(x[0]), carry.ts))
+    carry, _, _ = trainer.train_call(carry)
+    after = named_leaves(jax.tree.map(lambda x: np.asarray(x[0]), carry.ts))
+    assert int(after["gradient_steps"]) == int(before["gradient_steps"]) + 5
+    assert all(np.isfinite(v).all() for v in after.values() if v.dtype.kind == "f")
+    changed = [k for k in after if k.startswith("policy_params") and (after[k] != before[k]).any()]
+    assert changed, "the training call left the policy as it was"
 
 
 def test_training_improves_eval_return_over_untrained(trained):

@@ -33,7 +33,6 @@ per env and engine)::
 from __future__ import annotations
 
 import argparse
-import csv
 import json
 import os
 from pathlib import Path
@@ -41,7 +40,7 @@ from pathlib import Path
 import numpy as np
 
 import peghole_mjx  # noqa: F401  (sets the XLA CPU flag before JAX starts)
-from benchmarks.common import EVALS_RESULTS, cpu_label, out_file, rel, table, wilson
+from benchmarks.common import EVALS_RESULTS, cpu_label, out_file, rel, table, wilson, write_rows
 from benchmarks.evals.hard_variants import run, summarise
 from peghole_mjx.envs import ALL_ENVS
 from peghole_mjx.policies import load_policy
@@ -286,10 +285,7 @@ def main(argv: list[str] | None = None) -> int:
     rows = [
         {"env": n, "engine": g, **_flat(e[g])} for n, e in result["envs"].items() for g in ENGINES
     ]
-    with open(out.with_suffix(".csv"), "w", newline="") as f:
-        w = csv.DictWriter(f, fieldnames=list(rows[0]))
-        w.writeheader()
-        w.writerows(rows)
+    write_rows(out.with_suffix(".csv"), rows)
     print(out)
     return 0
 

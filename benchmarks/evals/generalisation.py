@@ -7,9 +7,11 @@ dual-1/2/3) and on one custom geometry that is not a preset (:data:`HELD_OUT`, t
 config's ``geometry`` entry), every other env setting as trained. Each cell is
 :func:`peghole_mjx.training.evaluate.evaluate` with ``cross=True`` (its result records what
 differs from the training env): policy and baseline meet the same randomised episodes (the
-same seed in every cell). Reported per cell and method: success rate, mean extraction time
-(successful episodes), mean |F_z| and peak |F_z| (mean over episodes of the per-episode
-peak), and the force reduction of the policy vs the baseline.
+same seed in every cell), on the engine the policy was trained on unless ``--engine`` is
+given (then every cell, a cross evaluation on that engine). Reported per cell and method:
+success rate, mean extraction time (successful episodes), mean |F_z| and peak |F_z| (mean
+over episodes of the per-episode peak), and the force reduction of the policy vs the
+baseline.
 
     python -m benchmarks.evals.generalisation --policy rect --episodes 128
     python -m benchmarks.evals.generalisation --policy dual --episodes 128 --batch 128
@@ -24,19 +26,27 @@ finished cell is saved under ``--parts`` (default ``runs/generalisation_<policy>
 from __future__ import annotations
 
 import argparse
-import csv
 import datetime as dt
 import hashlib
-import io
 import json
 import sys
 import time
 from pathlib import Path
 
 import peghole_mjx  # noqa: F401  (sets the XLA CPU flag before JAX starts)
-from benchmarks.common import EVALS_RESULTS, ROOT, cpu_label, fmt_num, out_file, rel, table
+from benchmarks.common import (
+    EVALS_RESULTS,
+    ROOT,
+    cpu_label,
+    fmt_num,
+    out_file,
+    rel,
+    table,
+    write_rows,
+)
 from peghole_mjx import fileio
 from peghole_mjx.envs.config import apply_overrides, env_spec, geometry_text
+from peghole_mjx.envs.engines import ENGINES
 from peghole_mjx.errors import UserInputError
 from peghole_mjx.geometry.specs import PRESETS, get_preset, with_changes
 from peghole_mjx.policies import PRETRAINED, load_policy
@@ -153,11 +163,7 @@ def write(out: Path, head: dict, rows: list[dict]) -> None:
         for r in rows
         for who in ("policy", "baseline")
     ]
-    text = io.StringIO()
-    w = csv.DictWriter(text, fieldnames=list(csv_rows[0]), lineterminator="\n")
-    w.writeheader()
-    w.writerows(csv_rows)
-    fileio.write_text(out.with_suffix(".csv"), text.getvalue())
+    write_rows(out.with_suffix(".csv"), csv_rows)
 
 
 def _shown(path: Path) -> str:
@@ -224,6 +230,11 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument(
         "--presets", nargs="*", help="presets to run (default: the three of the policy's kind)"
     )
+    ap.add_argument(
+        "--engine",
+        choices=ENGINES,
+        help="the engine of every cell (default: the one the policy was trained on)",
+    )
     ap.add_argument("--no-custom", action="store_true", help="skip the held-out geometry")
     ap.add_argument("--parts", type=Path, help="finished cells and slices (resumable)")
     ap.add_argument("--out", type=out_file, help="JSON to write (the CSV beside it)")
@@ -239,6 +250,8 @@ def main(argv: list[str] | None = None) -> int:
     todo = cells(kind, args.presets, not args.no_custom)
     if not todo:
         raise UserInputError("no cells to run: give --presets NAME ... or drop --no-custom")
+    if args.engine:
+        todo = {name: {**over, "engine": args.engine} for name, over in todo.items()}
     with_changes(get_preset(trained.preset), **HELD_OUT[kind])  # the held-out spec is valid
     head = {
         "what": "generalisation matrix: policy and scripted baseline, same episodes per cell",
@@ -249,6 +262,7 @@ def main(argv: list[str] | None = None) -> int:
         "episodes_per_cell": args.episodes,
         "seed": args.seed,
         "batch": args.batch or args.episodes,
+        "engine": args.engine or trained.engine,
         "held_out_geometry": json.loads(geometry_text(HELD_OUT[kind])),
         "cells_planned": list(todo),
     }

@@ -29,8 +29,6 @@ interrupted run, rerun, continues where it stopped, and a longer one reuses them
 from __future__ import annotations
 
 import argparse
-import csv
-import io
 import itertools
 import json
 import sys
@@ -50,6 +48,7 @@ from benchmarks.common import (
     rel,
     table,
     wilson,
+    write_rows,
 )
 from benchmarks.evals.cross_engine import paired_difference
 from benchmarks.evals.hard_variants import summarise
@@ -151,7 +150,7 @@ CSV_FIELDS = (
 )
 
 
-def csv_text(doc: dict) -> str:
+def csv_rows(doc: dict) -> list[dict]:
     """One row per method and breakaway bin (``all`` first)."""
     rows = []
     lo, hi = doc["breakaway_N"]
@@ -165,11 +164,7 @@ def csv_text(doc: dict) -> str:
             values += [b["released"], b["mean_release_time_s"], b["mean_fz_N"], b["peak_fz_N"]]
             values += [b["mean_time_s"], doc["engine"], doc["seed"], doc["device"], doc["date"]]
             rows.append(dict(zip(CSV_FIELDS, values, strict=True)))
-    text = io.StringIO()
-    w = csv.DictWriter(text, fieldnames=CSV_FIELDS, lineterminator="\n")
-    w.writeheader()
-    w.writerows(rows)
-    return text.getvalue()
+    return rows
 
 
 def _change(x: dict | None) -> str:
@@ -288,7 +283,7 @@ def main(argv: list[str] | None = None) -> int:
         "paired": paired(ep["policy"], ep["scripted"]),
     }
     fileio.write_text(out, json.dumps(doc, indent=2) + "\n")
-    fileio.write_text(out.with_suffix(".csv"), csv_text(doc))
+    write_rows(out.with_suffix(".csv"), csv_rows(doc), CSV_FIELDS)
     for who in METHODS:
         s = doc[who]
         print(

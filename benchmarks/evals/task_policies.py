@@ -28,8 +28,6 @@ the docs table ``task_policies`` (docs/guide/tasks.md) is generated from it.
 from __future__ import annotations
 
 import argparse
-import csv
-import io
 import json
 import subprocess
 import sys
@@ -41,10 +39,10 @@ import numpy as np
 from tqdm import tqdm
 
 import peghole_mjx  # noqa: F401  (sets the XLA CPU flag before JAX starts)
-from benchmarks.common import EVALS_RESULTS, ROOT, cpu_label, out_file, rel, table
+from benchmarks.common import EVALS_RESULTS, ROOT, cpu_label, out_file, rel, table, write_rows
 from benchmarks.evals.cross_engine import paired_difference
 from benchmarks.evals.hard_variants import summarise
-from peghole_mjx import envs, fileio
+from peghole_mjx import envs
 from peghole_mjx.envs.rollout import rollout, scripted_policy
 from peghole_mjx.envs.task_make import make_builtin
 from peghole_mjx.geometry import task as tf
@@ -306,11 +304,11 @@ def main(argv: list[str] | None = None) -> int:
             "rows": rows,
         }
         args.out.write_text(json.dumps(meta, indent=2) + "\n")
-        text = io.StringIO()
-        w = csv.DictWriter(text, fieldnames=CSV_FIELDS, lineterminator="\n")
-        w.writeheader()
-        w.writerows({**csv_row(r), "device": meta["device"], "date": meta["date"]} for r in rows)
-        fileio.write_text(args.out.with_suffix(".csv"), text.getvalue())
+        write_rows(
+            args.out.with_suffix(".csv"),
+            ({**csv_row(r), "device": meta["device"], "date": meta["date"]} for r in rows),
+            CSV_FIELDS,
+        )
     print(args.out)
     return 0
 

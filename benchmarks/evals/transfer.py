@@ -32,7 +32,6 @@ its rollouts, so an interrupted run skips the finished cells when rerun.
 from __future__ import annotations
 
 import argparse
-import csv
 import hashlib
 import io
 import json
@@ -54,6 +53,7 @@ from benchmarks.common import (
     out_file,
     rel,
     table,
+    write_rows,
 )
 from benchmarks.evals.cross_engine import paired_difference
 from benchmarks.evals.hard_variants import summarise
@@ -426,11 +426,7 @@ def write(out: Path, head: dict, rows: list[dict]) -> None:
                 values += [None, None, None] if x is None else [x["mean"], *x["ci95"]]
             values += [head["seed"], doc["device"], versions, r["date"]]
             lines.append(dict(zip(CSV_FIELDS, values, strict=True)))
-    text = io.StringIO()
-    w = csv.DictWriter(text, fieldnames=CSV_FIELDS, lineterminator="\n")
-    w.writeheader()
-    w.writerows(lines)
-    fileio.write_text(out.with_suffix(".csv"), text.getvalue())
+    write_rows(out.with_suffix(".csv"), lines, CSV_FIELDS)
     heat_map(doc, out.with_suffix(".png"))
 
 

@@ -36,7 +36,6 @@ writes ``benchmarks/results/perf/contact_caps.json``.
 from __future__ import annotations
 
 import argparse
-import copy
 import json
 import sys
 import time
@@ -44,13 +43,12 @@ from typing import Any
 
 import jax
 import jax.numpy as jnp
-import mujoco
 import numpy as np
 
 from benchmarks.common import PERF_RESULTS, out_file
 from benchmarks.perf.engines import scripted_action
 from peghole_mjx import envs
-from peghole_mjx.envs.engine_mujoco import STATE_SPEC
+from peghole_mjx.envs.contacts import ContactReplay, restart_done
 from peghole_mjx.geometry.mjcf import CONTACT_CAPS
 from peghole_mjx.provenance import provenance
 
@@ -73,16 +71,6 @@ def _policy_action(kind: str, env, rng: np.random.Generator, worlds: int) -> np.
     return rng.uniform(-1.0, 1.0, (worlds, env.action_size))
 
 
-def _restart_done(s, s0):
-    """The batch ``s`` with its finished worlds put back to their start states ``s0``."""
-    done = jnp.asarray(np.asarray(s.done) > 0)
-
-    def pick(n, o):
-        return jnp.where(done.reshape((-1,) + (1,) * (n.ndim - 1)), o, n)
-
-    return jax.tree.map(pick, s, s0)
-
-
 def _count(env, policy: str, worlds: int, env_steps: int, seed: int, active) -> tuple[dict, Any]:
     """Roll ``worlds`` worlds of ``env`` for ``env_steps`` env steps (finished worlds restart)
     and take the maximum of ``active(state_before, state_after) -> int`` over the env steps."""
@@ -102,7 +90,7 @@ def _count(env, policy: str, worlds: int, env_steps: int, seed: int, active) -> 
         done = np.asarray(s.done) > 0
         if done.any():
             episodes += int(done.sum())
-            s = _restart_done(s, s0)
+            s = restart_done(s, s0)
         if i == 0:
             first_s = time.perf_counter() - t0
     out = {
@@ -125,40 +113,8 @@ def count_c(env, policy: str, worlds: int, env_steps: int, seed: int = 0) -> dic
     (``env.engine.to_mjdata``) with the recorded torques and the world's friction scale, and
     the active contacts counted after every ``mj_step``. The replay is the env's own step: its
     end state must equal the env's bit for bit (checked; a RuntimeError otherwise)."""
-    if env.engine.name != "mujoco":
-        raise ValueError(f"count_c needs an env on the mujoco engine, got {env.engine.name!r}")
-    m = copy.copy(env.engine.model)
-    fric0 = np.array(m.pair_friction)
-    d = mujoco.MjData(m)
-    row = np.empty(env.engine.nstate)
-    log: list[np.ndarray] = []
-
-    def active(prev, s) -> int:
-        jax.block_until_ready(s.obs)
-        ctrl = np.stack(log, axis=1)  # (worlds, substeps, nu)
-        log.clear()
-        start = jax.tree.map(np.asarray, prev.data)
-        end = np.asarray(s.data.state)
-        fscale = np.asarray(prev.info["friction_scale"], float)
-        finite = np.asarray(s.metrics["nan"]) == 0
-        most = 0
-        for w in range(worlds):
-            m.pair_friction[:] = fric0 * fscale[w]
-            env.engine.to_mjdata(jax.tree.map(lambda x, w=w: x[w], start), m, d)
-            for tau in ctrl[w]:
-                d.ctrl[:] = tau
-                mujoco.mj_step(m, d)
-                most = max(most, int(np.sum(d.contact.dist[: d.ncon] <= 0.0)))
-            mujoco.mj_getState(m, d, row, STATE_SPEC)
-            if finite[w] and not np.array_equal(row, end[w].view(np.float64)):
-                raise RuntimeError(f"world {w}: the replayed step differs from the env's")
-        return most
-
-    env.engine.ctrl_log = log
-    try:
-        out, _ = _count(env, policy, worlds, env_steps, seed, active)
-    finally:
-        env.engine.ctrl_log = None
+    with ContactReplay(env) as replay:
+        out, _ = _count(env, policy, worlds, env_steps, seed, replay.max_active)
     return out
 
 

@@ -29,7 +29,6 @@ appended to ``<out>.parts.jsonl`` (resumable)::
 from __future__ import annotations
 
 import argparse
-import csv
 import json
 from pathlib import Path
 
@@ -39,7 +38,15 @@ from matplotlib.figure import Figure
 from matplotlib.patches import Patch
 from tqdm import tqdm
 
-from benchmarks.common import EVALS_RESULTS, STUDIES_RESULTS, fmt_ci, fmt_num, out_file, table
+from benchmarks.common import (
+    EVALS_RESULTS,
+    STUDIES_RESULTS,
+    fmt_ci,
+    fmt_num,
+    out_file,
+    table,
+    write_rows,
+)
 from benchmarks.evals.experiments import ordered
 from benchmarks.studies.pull_speed import oracle_late_peaks
 from peghole_mjx.control.limits import LIMITS
@@ -334,10 +341,7 @@ def main() -> int:
         }
         for r in rows
     ]
-    with args.out.with_suffix(".csv").open("w", newline="") as f:
-        w = csv.DictWriter(f, fieldnames=list(flat[0]))
-        w.writeheader()
-        w.writerows(flat)
+    write_rows(args.out.with_suffix(".csv"), flat)
     print(write_figure(rows, args.out.with_suffix(".png")))
     for s in doc["summary"]:
         print(s)

@@ -236,6 +236,71 @@ def plot_contacts(trace: ContactTrace, path: Path, title: str = "") -> Path:
     return path
 
 
+def restart_done(state: Any, start: Any) -> Any:
+    """The batch ``state`` with its finished worlds put back to their start states ``start``."""
+    done = jnp.asarray(np.asarray(state.done) > 0)
+
+    def pick(new, old):
+        return jnp.where(done.reshape((-1,) + (1,) * (new.ndim - 1)), old, new)
+
+    return jax.tree.map(pick, state, start)
+
+
+class ContactReplay:
+    """Counts the active contacts (distance <= 0) after every physics step of a ``mujoco``
+    engine env's steps, by replaying them.
+
+    Inside ``with ContactReplay(env) as replay:`` each env step runs in the env with the
+    engine's torque record on (``engine.ctrl_log``); ``replay.max_active(prev, state)`` then
+    replays that step's physics steps world by world in one ``MjData``, from the step's start
+    state with the recorded torques and the world's friction scale, counting after every
+    ``mj_step``. The replay is the env's own step: its end state must equal the env's bit for
+    bit (a RuntimeError otherwise). How the presets' and the task folders' contact caps are
+    measured (:func:`max_active_contacts`, ``benchmarks/perf/contact_caps.py``)."""
+
+    def __init__(self, env: PegHoleEnv):
+        if env.engine.name != "mujoco":
+            raise ValueError(f"contact replay needs the mujoco engine, got {env.engine.name!r}")
+        self.env = env
+        self.model = copy.copy(env.engine.model)
+        self.friction0 = np.array(self.model.pair_friction)
+        self.data = mujoco.MjData(self.model)
+        self.row = np.empty(env.engine.nstate)
+        self.log: list[np.ndarray] = []
+
+    def __enter__(self) -> ContactReplay:
+        self.log.clear()
+        self.env.engine.ctrl_log = self.log
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.env.engine.ctrl_log = None
+
+    def max_active(self, prev: Any, state: Any) -> int:
+        """The most active contacts in any world after any physics step of the env step
+        from ``prev`` to ``state`` (batched states)."""
+        m, d = self.model, self.data
+        jax.block_until_ready(state.obs)
+        ctrl = np.stack(self.log, axis=1)  # (worlds, substeps, nu)
+        self.log.clear()
+        start = jax.tree.map(np.asarray, prev.data)
+        end = np.asarray(state.data.state)
+        fscale = np.asarray(prev.info["friction_scale"], float)
+        finite = np.asarray(state.metrics["nan"]) == 0
+        most = 0
+        for w in range(ctrl.shape[0]):
+            m.pair_friction[:] = self.friction0 * fscale[w]
+            self.env.engine.to_mjdata(jax.tree.map(lambda x, w=w: x[w], start), m, d)
+            for tau in ctrl[w]:
+                d.ctrl[:] = tau
+                mujoco.mj_step(m, d)
+                most = max(most, int(np.sum(d.contact.dist[: d.ncon] <= 0.0)))
+            mujoco.mj_getState(m, d, self.row, STATE_SPEC)
+            if finite[w] and not np.array_equal(self.row, end[w].view(np.float64)):
+                raise RuntimeError(f"world {w}: the replayed step differs from the env's")
+        return most
+
+
 def max_active_contacts(
     env: PegHoleEnv,
     act: Callable[[jax.Array, jax.Array], jax.Array],
@@ -245,59 +310,22 @@ def max_active_contacts(
 ) -> dict[str, int]:
     """The most active contacts (distance <= 0) in any world after any physics step, ``worlds``
     worlds of ``env`` (on its ``mujoco`` engine) run for ``env_steps`` env steps with
-    ``act(obs, rng) -> action``; a finished world restarts from its start state.
-
-    How a scene's contact cap is measured (``benchmarks/perf/contact_caps.py`` for the
-    presets): each env step runs in the env with the engine's torque record on
-    (``engine.ctrl_log``); its physics steps are then replayed world by world in one
-    ``MjData`` from the step's start state with the recorded torques and the world's friction,
-    counting after every ``mj_step``. The replay is the env's own step: its end state must
-    equal the env's bit for bit (a RuntimeError otherwise). Returns the maximum, the episodes
-    that ended and the env steps run."""
-    if env.engine.name != "mujoco":
-        raise ValueError(f"max_active_contacts needs the mujoco engine, got {env.engine.name!r}")
-    m = copy.copy(env.engine.model)
-    fric0 = np.array(m.pair_friction)
-    d = mujoco.MjData(m)
-    row = np.empty(env.engine.nstate)
+    ``act(obs, rng) -> action``; a finished world restarts from its start state. Counted by
+    :class:`ContactReplay`. Returns the maximum, the episodes that ended and the env steps
+    run."""
     reset, step = jax.jit(jax.vmap(env.reset)), jax.jit(jax.vmap(env.step))
     act_v = jax.jit(jax.vmap(act))
     state = start = reset(jax.random.split(jax.random.PRNGKey(seed), worlds))
     key = jax.random.PRNGKey(seed + 1)
-    log: list[np.ndarray] = []
     most, episodes = 0, 0
-    env.engine.ctrl_log = log
-    try:
+    with ContactReplay(env) as replay:
         for _ in range(env_steps):
             key, sub = jax.random.split(key)
             prev = state
             state = step(prev, act_v(prev.obs, jax.random.split(sub, worlds)))
-            jax.block_until_ready(state.obs)
-            ctrl = np.stack(log, axis=1)  # (worlds, substeps, nu)
-            log.clear()
-            data0 = jax.tree.map(np.asarray, prev.data)
-            end = np.asarray(state.data.state)
-            fscale = np.asarray(prev.info["friction_scale"], float)
-            finite = np.asarray(state.metrics["nan"]) == 0
-            for w in range(worlds):
-                m.pair_friction[:] = fric0 * fscale[w]
-                env.engine.to_mjdata(jax.tree.map(lambda x, w=w: x[w], data0), m, d)
-                for tau in ctrl[w]:
-                    d.ctrl[:] = tau
-                    mujoco.mj_step(m, d)
-                    most = max(most, int(np.sum(d.contact.dist[: d.ncon] <= 0.0)))
-                mujoco.mj_getState(m, d, row, STATE_SPEC)
-                if finite[w] and not np.array_equal(row, end[w].view(np.float64)):
-                    raise RuntimeError(f"world {w}: the replayed step differs from the env's")
+            most = max(most, replay.max_active(prev, state))
             done = np.asarray(state.done) > 0
             if done.any():
                 episodes += int(done.sum())
-                mask = jnp.asarray(done)
-
-                def pick(n, o, mask=mask):
-                    return jnp.where(mask.reshape((-1,) + (1,) * (n.ndim - 1)), o, n)
-
-                state = jax.tree.map(pick, state, start)
-    finally:
-        env.engine.ctrl_log = None
+                state = restart_done(state, start)
     return {"max_active": most, "episodes_ended": episodes, "env_steps": env_steps}

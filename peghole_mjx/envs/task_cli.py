@@ -14,6 +14,7 @@ import argparse
 from pathlib import Path
 
 from peghole_mjx.geometry import task as tf
+from peghole_mjx.geometry.cli import add_coacd_arguments
 from peghole_mjx.geometry.shapes import BUILTINS
 from peghole_mjx.lazy import command
 from peghole_mjx.validation import arg
@@ -71,20 +72,13 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     m.add_argument("peg_mesh", type=Path)
     m.add_argument("hole_mesh", type=Path)
     m.add_argument("--units", default="mm", choices=["mm", "cm", "m"], help="mesh units")
-    m.add_argument("--threshold", type=arg("threshold"), default=0.01, help="CoACD concavity")
-    m.add_argument("--resolution", type=arg("resolution"), default=2000, help="CoACD sampling")
-    m.add_argument("--preprocess-resolution", type=arg("preprocess_resolution"), default=50)
-    m.add_argument(
-        "--max-convex-hull", type=arg("max_convex_hull"), default=-1, help="CoACD's own hull cap"
+    add_coacd_arguments(
+        m,
+        vertex_default=tf.MAX_HULL_VERTICES,
+        vertex_check="max_hull_vertices",
+        vertex_help="vertices per piece: CoACD's decimation and the cap "
+        f"(<= {tf.MAX_HULL_VERTICES})",
     )
-    m.add_argument(
-        "--max-ch-vertex",
-        type=arg("max_hull_vertices"),
-        default=tf.MAX_HULL_VERTICES,
-        help=f"vertices per piece: CoACD's decimation and the cap (<= {tf.MAX_HULL_VERTICES})",
-    )
-    m.add_argument("--mcts-iterations", type=arg("mcts_iterations"), default=150)
-    m.add_argument("--seed", type=arg("seed"), default=0, help="CoACD's seed")
     _common(m)
     m.set_defaults(func=command(f"{COMMANDS}:cmd_make"))
 

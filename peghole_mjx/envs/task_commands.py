@@ -51,16 +51,19 @@ def _report(doc: dict, args: argparse.Namespace, out: Path | None = None) -> int
     return 0
 
 
+def _shared(args: argparse.Namespace, caps: TaskCaps, run: ContactRun) -> dict:
+    """The keyword arguments ``make_task`` and ``make_builtin`` share."""
+    return {
+        "friction": args.friction,
+        "peg_mass_kg": args.peg_mass,
+        "caps": caps,
+        "contacts": run,
+        "progress": not args.json,
+    }
+
+
 def cmd_make(args: argparse.Namespace) -> int:
-    params = CoacdParams(
-        threshold=args.threshold,
-        max_convex_hull=args.max_convex_hull,
-        preprocess_resolution=args.preprocess_resolution,
-        resolution=args.resolution,
-        mcts_iterations=args.mcts_iterations,
-        max_ch_vertex=args.max_ch_vertex,
-        seed=args.seed,
-    )
+    params = CoacdParams.from_args(args)
     caps, run = _caps_and_run(args, args.max_ch_vertex)
     doc = make_task(
         args.peg_mesh,
@@ -68,27 +71,14 @@ def cmd_make(args: argparse.Namespace) -> int:
         args.out,
         units=args.units,
         params=params,
-        friction=args.friction,
-        peg_mass_kg=args.peg_mass,
-        caps=caps,
-        contacts=run,
-        progress=not args.json,
+        **_shared(args, caps, run),
     )
     return _report(doc, args, args.out)
 
 
 def cmd_builtin(args: argparse.Namespace) -> int:
     caps, run = _caps_and_run(args)
-    doc = make_builtin(
-        args.name,
-        args.clearance_mm,
-        args.out,
-        friction=args.friction,
-        peg_mass_kg=args.peg_mass,
-        caps=caps,
-        contacts=run,
-        progress=not args.json,
-    )
+    doc = make_builtin(args.name, args.clearance_mm, args.out, **_shared(args, caps, run))
     return _report(doc, args, args.out)
 
 

@@ -38,6 +38,34 @@ def _pair(text: str) -> tuple[float, float]:
     return _size(a), _size(b)
 
 
+def add_coacd_arguments(
+    p: argparse.ArgumentParser,
+    vertex_default: int = 64,
+    vertex_check: str = "max_ch_vertex",
+    vertex_help: str = "vertices per hull cap",
+) -> None:
+    """CoACD's options (:class:`~peghole_mjx.geometry.decompose.CoacdParams`), shared by
+    ``models decompose`` and ``task make``; ``--max-ch-vertex`` differs per command."""
+    p.add_argument(
+        "--threshold", type=arg("threshold"), default=0.01, help="CoACD concavity threshold"
+    )
+    p.add_argument(
+        "--resolution", type=arg("resolution"), default=2000, help="CoACD sampling resolution"
+    )
+    p.add_argument("--preprocess-resolution", type=arg("preprocess_resolution"), default=50)
+    p.add_argument(
+        "--max-convex-hull",
+        type=arg("max_convex_hull"),
+        default=-1,
+        help="CoACD hull cap (-1: none)",
+    )
+    p.add_argument(
+        "--max-ch-vertex", type=arg(vertex_check), default=vertex_default, help=vertex_help
+    )
+    p.add_argument("--mcts-iterations", type=arg("mcts_iterations"), default=150)
+    p.add_argument("--seed", type=arg("seed"), default=0, help="CoACD's seed")
+
+
 def add_parser(sub: argparse._SubParsersAction) -> None:
     p = sub.add_parser("models", help="peg-hole models: check, build, decompose")
     msub = p.add_subparsers(dest="models_cmd", metavar="SUBCOMMAND", required=True)
@@ -118,24 +146,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     d.add_argument("hole_mesh", type=Path)
     d.add_argument("--out", required=True, type=Path)
     d.add_argument("--units", default="mm", choices=["mm", "cm", "m"], help="mesh units")
-    d.add_argument(
-        "--threshold", type=arg("threshold"), default=0.01, help="CoACD concavity threshold"
-    )
-    d.add_argument(
-        "--resolution", type=arg("resolution"), default=2000, help="CoACD sampling resolution"
-    )
-    d.add_argument("--preprocess-resolution", type=arg("preprocess_resolution"), default=50)
-    d.add_argument(
-        "--max-convex-hull",
-        type=arg("max_convex_hull"),
-        default=-1,
-        help="CoACD hull cap (-1: none)",
-    )
-    d.add_argument(
-        "--max-ch-vertex", type=arg("max_ch_vertex"), default=64, help="vertices per hull cap"
-    )
-    d.add_argument("--mcts-iterations", type=arg("mcts_iterations"), default=150)
-    d.add_argument("--seed", type=arg("seed"), default=0)
+    add_coacd_arguments(d)
     d.add_argument(
         "--clearance-mm",
         type=arg("clearance_mm"),
@@ -270,15 +281,7 @@ def cmd_build(args: argparse.Namespace) -> int:
 
 def cmd_decompose(args: argparse.Namespace) -> int:
     fileio.check_out_dir(args.out)
-    params = decompose.CoacdParams(
-        threshold=args.threshold,
-        max_convex_hull=args.max_convex_hull,
-        preprocess_resolution=args.preprocess_resolution,
-        resolution=args.resolution,
-        mcts_iterations=args.mcts_iterations,
-        max_ch_vertex=args.max_ch_vertex,
-        seed=args.seed,
-    )
+    params = decompose.CoacdParams.from_args(args)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", decompose.DecompositionWarning)  # reported below instead
         report = decompose.decompose_parts(

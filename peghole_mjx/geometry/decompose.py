@@ -17,6 +17,7 @@ import math
 import warnings
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
+from typing import Any
 
 import mujoco
 import numpy as np
@@ -57,6 +58,20 @@ class CoacdParams:
     mcts_max_depth: int = 3
     max_ch_vertex: int = 64  # MJX: keep hulls small (stack notes: <= 64)
     seed: int = 0
+
+    @classmethod
+    def from_args(cls, args: Any) -> CoacdParams:
+        """The options of a command's parsed arguments (``add_coacd_arguments``)."""
+        names = (
+            "threshold",
+            "max_convex_hull",
+            "preprocess_resolution",
+            "resolution",
+            "mcts_iterations",
+            "max_ch_vertex",
+            "seed",
+        )
+        return cls(**{n: getattr(args, n) for n in names})
 
     def __post_init__(self):
         """Refuse values CoACD aborts on or never finishes with (ranges in
@@ -416,33 +431,8 @@ def user_mjcf(
     peg_body = s.worldbody.add_body(name="peg")
     peg_body.add_freejoint(name="peg_free")
     mass = peg_mass_kg if peg_mass_kg is not None else 1200.0 * peg.volume  # ~PLA density
-    vols = np.array([_hull_volume(h) for h in peg_hulls])
-    peg_names, hole_names = [], []
-    for i, (h, v) in enumerate(zip(peg_hulls, vols, strict=True)):
-        mesh = s.add_mesh(name=f"peg_hull{i:03d}_mesh")
-        mesh.uservert = h.ravel().tolist()
-        peg_body.add_geom(
-            name=f"peg_hull{i:03d}",
-            type=mujoco.mjtGeom.mjGEOM_MESH,
-            meshname=mesh.name,
-            contype=0,
-            conaffinity=0,
-            mass=mass * v / vols.sum(),
-            rgba=[0.2, 0.45, 0.85, 1],
-        )
-        peg_names.append(f"peg_hull{i:03d}")
-    for i, h in enumerate(hole_hulls):
-        mesh = s.add_mesh(name=f"hole_hull{i:03d}_mesh")
-        mesh.uservert = h.ravel().tolist()
-        hole_body.add_geom(
-            name=f"hole_hull{i:03d}",
-            type=mujoco.mjtGeom.mjGEOM_MESH,
-            meshname=mesh.name,
-            contype=0,
-            conaffinity=0,
-            rgba=[0.75, 0.72, 0.65, 1],
-        )
-        hole_names.append(f"hole_hull{i:03d}")
+    peg_names = add_hull_geoms(s, peg_body, "peg", peg_hulls, mass=mass, rgba=(0.2, 0.45, 0.85, 1))
+    hole_names = add_hull_geoms(s, hole_body, "hole", hole_hulls, rgba=(0.75, 0.72, 0.65, 1))
     for a in peg_names:
         for b in hole_names:
             s.add_pair(
@@ -461,16 +451,51 @@ def user_mjcf(
         depth = float(hole.bounds[1, 2] - bottom[2])
     lift = hole.bounds[1, 2] - tip[2]
     s.add_key(name="mouth", qpos=[0, 0, lift, 1, 0, 0, 0])
-    try:
-        s.compile()
-    except ValueError as exc:  # e.g. a hull too thin for MuJoCo's mesh inertia
-        first = str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
-        raise UserInputError(f"MuJoCo cannot build the decomposed parts: {first}") from None
+    compile_pieces(s, "the decomposed parts")
     return s.to_xml(), depth
 
 
-def _hull_volume(vertices: np.ndarray) -> float:
-    return float(ConvexHull(vertices).volume)
+def hull_volume(vertices: np.ndarray) -> float:
+    """The volume of the convex hull of ``vertices`` (n, 3)."""
+    return float(ConvexHull(np.asarray(vertices, float)).volume)
+
+
+def add_hull_geoms(
+    spec: mujoco.MjSpec,
+    body,
+    prefix: str,
+    hulls: list[np.ndarray],
+    mass: float | None = None,
+    rgba: tuple[float, ...] | None = None,
+) -> list[str]:
+    """Add one mesh geom ``{prefix}_hull{i:03d}`` per convex piece to ``body`` (collisions
+    through explicit pairs only); ``mass`` is shared among the pieces by volume. Returns the
+    geom names."""
+    vols = np.array([hull_volume(h) for h in hulls]) if mass is not None else None
+    names = []
+    for i, h in enumerate(hulls):
+        name = f"{prefix}_hull{i:03d}"
+        mesh = spec.add_mesh(name=f"{name}_mesh")
+        mesh.uservert = np.asarray(h, float).ravel().tolist()
+        geom = body.add_geom(
+            name=name, type=mujoco.mjtGeom.mjGEOM_MESH, meshname=mesh.name, contype=0, conaffinity=0
+        )
+        if vols is not None:
+            geom.mass = mass * vols[i] / vols.sum()
+        if rgba is not None:
+            geom.rgba = list(rgba)
+        names.append(name)
+    return names
+
+
+def compile_pieces(spec: mujoco.MjSpec, what: str) -> mujoco.MjModel:
+    """``spec.compile()``, MuJoCo's refusal (e.g. a piece too thin for its mesh inertia) as
+    one line naming ``what``."""
+    try:
+        return spec.compile()
+    except ValueError as exc:
+        first = str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
+        raise UserInputError(f"MuJoCo cannot build {what}: {first}") from None
 
 
 def decompose_parts(

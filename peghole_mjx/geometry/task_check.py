@@ -31,11 +31,10 @@ from dataclasses import dataclass, field
 
 import mujoco
 import numpy as np
-from scipy.spatial import ConvexHull
 
 from peghole_mjx.errors import UserInputError
 from peghole_mjx.geometry import check
-from peghole_mjx.geometry.decompose import measure_deviation
+from peghole_mjx.geometry.decompose import add_hull_geoms, compile_pieces, measure_deviation
 from peghole_mjx.geometry.mjcf import SimOptions, _set_options
 from peghole_mjx.geometry.specs import MM
 
@@ -97,28 +96,8 @@ def _free_peg_model(peg_hulls, hole_hulls, friction: float, mass: float, sim: Si
     hole = s.worldbody.add_body(name="hole")
     peg = s.worldbody.add_body(name="peg")
     peg.add_freejoint(name="peg_free")
-    vols = np.array([_volume(h) for h in peg_hulls])
-    for i, (h, v) in enumerate(zip(peg_hulls, vols, strict=True)):
-        mesh = s.add_mesh(name=f"peg_hull{i:03d}_mesh")
-        mesh.uservert = np.asarray(h, float).ravel().tolist()
-        peg.add_geom(
-            name=f"peg_hull{i:03d}",
-            type=mujoco.mjtGeom.mjGEOM_MESH,
-            meshname=mesh.name,
-            contype=0,
-            conaffinity=0,
-            mass=mass * v / vols.sum(),
-        )
-    for j, h in enumerate(hole_hulls):
-        mesh = s.add_mesh(name=f"hole_hull{j:03d}_mesh")
-        mesh.uservert = np.asarray(h, float).ravel().tolist()
-        hole.add_geom(
-            name=f"hole_hull{j:03d}",
-            type=mujoco.mjtGeom.mjGEOM_MESH,
-            meshname=mesh.name,
-            contype=0,
-            conaffinity=0,
-        )
+    add_hull_geoms(s, peg, "peg", peg_hulls, mass=mass)
+    add_hull_geoms(s, hole, "hole", hole_hulls)
     for i in range(len(peg_hulls)):
         for j in range(len(hole_hulls)):
             s.add_pair(
@@ -130,18 +109,10 @@ def _free_peg_model(peg_hulls, hole_hulls, friction: float, mass: float, sim: Si
                 solreffriction=list(sim.solreffriction),
                 solimp=list(sim.solimp),
             )
-    try:
-        m = s.compile()
-    except ValueError as exc:  # e.g. a piece too thin for MuJoCo's mesh inertia
-        first = str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
-        raise UserInputError(f"MuJoCo cannot build the convex pieces: {first}") from None
+    m = compile_pieces(s, "the convex pieces")
     m.opt.ccd_tolerance = 1e-12
     m.opt.ccd_iterations = 200
     return m
-
-
-def _volume(h: np.ndarray) -> float:
-    return float(ConvexHull(np.asarray(h, float)).volume)
 
 
 def _qpos(offset) -> np.ndarray:
