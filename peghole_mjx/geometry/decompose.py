@@ -44,6 +44,18 @@ class DecompositionWarning(UserWarning):
     """The convex decomposition deviates from the part by a large fraction of the clearance."""
 
 
+#: the CoACD parameters a command sets (``add_coacd_arguments``), each range-checked
+COACD_OPTIONS = (
+    "threshold",
+    "max_convex_hull",
+    "preprocess_resolution",
+    "resolution",
+    "mcts_iterations",
+    "max_ch_vertex",
+    "seed",
+)
+
+
 @dataclass(frozen=True)
 class CoacdParams:
     """CoACD parameters exposed on the command line (see ``coacd.run_coacd``)."""
@@ -62,29 +74,12 @@ class CoacdParams:
     @classmethod
     def from_args(cls, args: Any) -> CoacdParams:
         """The options of a command's parsed arguments (``add_coacd_arguments``)."""
-        names = (
-            "threshold",
-            "max_convex_hull",
-            "preprocess_resolution",
-            "resolution",
-            "mcts_iterations",
-            "max_ch_vertex",
-            "seed",
-        )
-        return cls(**{n: getattr(args, n) for n in names})
+        return cls(**{n: getattr(args, n) for n in COACD_OPTIONS})
 
     def __post_init__(self):
         """Refuse values CoACD aborts on or never finishes with (ranges in
         ``peghole_mjx.validation.RANGES``)."""
-        for name in (
-            "threshold",
-            "max_convex_hull",
-            "preprocess_resolution",
-            "resolution",
-            "mcts_iterations",
-            "max_ch_vertex",
-            "seed",
-        ):
+        for name in COACD_OPTIONS:
             check(name, getattr(self, name), f"CoACD {name}")
         if self.preprocess_mode not in ("auto", "on", "off"):
             raise UserInputError("CoACD preprocess_mode must be auto, on or off")
