@@ -661,3 +661,16 @@ def test_task_cost_refuses_a_folder_without_a_manifest_before_any_work(tmp_path)
         ("DualExtract", DUAL_DEFAULT_REPRESENTATION),
     ]
     assert all(r["xla"]["env_step"]["bytes_per_world"] > 0 for r in ref)
+
+
+def test_committed_task_cost_csv_is_its_json():
+    """The task cost CSV holds exactly the committed JSON's rows (one per task, MB and MFLOP
+    per world, device and date), as ``task_cost.main`` writes it after every run."""
+    path = common.PERF_RESULTS / "task_cost_cpu-2core.json"
+    doc = json.loads(path.read_text())
+    rows = list(csv.DictReader(path.with_suffix(".csv").open()))
+    assert [r["task"] for r in rows] == [r["task"] for r in doc["rows"]]
+    for row, r in zip(rows, doc["rows"], strict=True):
+        mb = r["xla"]["env_step"]["bytes_per_world"] / 1e6
+        assert float(row["env_step_MB_per_world"]) == pytest.approx(mb, abs=1e-3)
+        assert row["device"] == doc["device"] and row["date"] == doc["date"]

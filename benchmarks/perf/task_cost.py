@@ -13,8 +13,9 @@ shown beside them from the committed ``cost_<device>.json`` of the same device, 
 
 Run ``python -m benchmarks.perf.task_cost --tasks runs/tasks_builtin_c0.1/*`` (minutes per
 task on 2 CPU cores: the mesh pairs' collision functions compile one by one); writes
-``benchmarks/results/perf/task_cost_<device>.json`` after each task. A rerun skips the tasks
-whose row is there with the same folder digest (``--force`` measures them again).
+``benchmarks/results/perf/task_cost_<device>.json`` after each task, and its CSV (one row per
+task, from the JSON) at the end. A rerun skips the tasks whose row is there with the same
+folder digest (``--force`` measures them again).
 """
 
 from __future__ import annotations
@@ -27,7 +28,15 @@ from pathlib import Path
 
 from tqdm import tqdm
 
-from benchmarks.common import PERF_RESULTS, device_label, load_average, out_file, rel, table
+from benchmarks.common import (
+    PERF_RESULTS,
+    device_label,
+    load_average,
+    out_file,
+    rel,
+    table,
+    write_rows,
+)
 from benchmarks.perf.cost import cost_variant, measure_env, without_persistent_cache
 from benchmarks.perf.engines import gpu_kind
 from benchmarks.perf.roofline import GPU_BANDWIDTH
@@ -235,8 +244,30 @@ def main(argv: list[str] | None = None) -> int:
             "reference": reference_rows(PERF_RESULTS / f"cost_{label}.json"),
         }
         fileio.write_text(out_path, json.dumps(result, indent=2, default=float) + "\n")
+    if out_path.is_file():
+        write_rows(out_path.with_suffix(".csv"), csv_rows(json.loads(out_path.read_text())))
     print(out_path)
     return 0
+
+
+def csv_rows(result: dict) -> list[dict]:
+    """One row per task of a task_cost JSON: sizes, XLA bytes and FLOPs per world (MB,
+    MFLOP), compile time, with the file's device, versions and date."""
+    versions = ";".join(f"{k}={v}" for k, v in result["versions"].items())
+    out = []
+    for r in result["rows"]:
+        x = r["xla"]
+        row = {k: r[k] for k in ("task", "folder", "peg_pieces", "hole_pieces", "contact_cap")}
+        row |= {k: r[k] for k in ("contacts_allocated", "constraint_rows")}
+        row["mjx_data_bytes_per_world"] = r["mjx_data_bytes_per_world"]
+        for stage in ("env_step", "physics_step", "collision"):
+            row[f"{stage}_MB_per_world"] = round(x[stage]["bytes_per_world"] / 1e6, 3)
+            row[f"{stage}_MFLOP_per_world"] = round(x[stage]["flops_per_world"] / 1e6, 3)
+        row["env_step_compile_s"] = r["env_step_compile_s"]
+        row["env_step_compile_cpu_s"] = r.get("env_step_compile_cpu_s")
+        row |= {"device": result["device"], "versions": versions, "date": result["date"]}
+        out.append(row)
+    return out
 
 
 if __name__ == "__main__":
