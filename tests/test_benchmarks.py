@@ -674,3 +674,14 @@ def test_committed_task_cost_csv_is_its_json():
         mb = r["xla"]["env_step"]["bytes_per_world"] / 1e6
         assert float(row["env_step_MB_per_world"]) == pytest.approx(mb, abs=1e-3)
         assert row["device"] == doc["device"] and row["date"] == doc["date"]
+
+
+def test_committed_contact_caps_csv_is_its_json():
+    """The contact-cap CSV holds the committed JSON's rows in order, with its device and date."""
+    path = common.PERF_RESULTS / "contact_caps.json"
+    doc = json.loads(path.read_text())
+    rows = list(csv.DictReader(path.with_suffix(".csv").open()))
+    assert [(r["scene"], r["policy"], int(r["max_active"])) for r in rows] == [
+        (r["scene"], r["policy"], r["max_active"]) for r in doc["rows"]
+    ]
+    assert all(r["device"] == doc["device"] and r["date"] == doc["date"] for r in rows)

@@ -30,7 +30,7 @@ under its cap of 32.
 
 Run ``python -m benchmarks.perf.contact_caps`` (about 15 minutes on 2 CPU cores; the mesh
 scene's MJX rollouts are short because its step compiles for minutes and runs at ~100 steps/s);
-writes ``benchmarks/results/perf/contact_caps.json``.
+writes ``benchmarks/results/perf/contact_caps.json`` and a CSV of its rows beside it.
 """
 
 from __future__ import annotations
@@ -45,7 +45,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from benchmarks.common import PERF_RESULTS, out_file
+from benchmarks.common import PERF_RESULTS, out_file, write_rows
 from benchmarks.perf.engines import scripted_action
 from peghole_mjx import envs
 from peghole_mjx.envs.contacts import ContactReplay, restart_done
@@ -101,6 +101,33 @@ def _count(env, policy: str, worlds: int, env_steps: int, seed: int, active) -> 
         "compile_and_first_step_s": round(first_s, 1),
     }
     return out, s
+
+
+#: the CSV beside the JSON: one row per scene, engine, policy and env
+CSV_FIELDS = (
+    "scene",
+    "env",
+    "representation",
+    "engine",
+    "policy",
+    "worlds",
+    "env_steps_per_world",
+    "max_active",
+    "allocated",
+    "episodes_ended",
+    "nan_worlds",
+    "device",
+    "versions",
+    "date",
+)
+
+
+def csv_rows(result: dict) -> list[dict]:
+    """The rows of a contact_caps JSON with its device, versions and date (a field a row does
+    not have stays empty)."""
+    versions = ";".join(f"{k}={v}" for k, v in result["versions"].items())
+    stamp = {"device": result["device"], "versions": versions, "date": result["date"]}
+    return [{k: r.get(k) for k in CSV_FIELDS} | stamp for r in result["rows"]]
 
 
 def count_c(env, policy: str, worlds: int, env_steps: int, seed: int = 0) -> dict:
@@ -194,6 +221,7 @@ def main(argv: list[str] | None = None) -> int:
         "rows": rows,
     }
     args.out.write_text(json.dumps(out, indent=2) + "\n")
+    write_rows(args.out.with_suffix(".csv"), csv_rows(out), CSV_FIELDS)
     print(json.dumps(summary, indent=2))
     print(f"wrote {args.out}")
     return 0
