@@ -425,3 +425,39 @@ def test_observed_commands_are_the_feed_forward_and_the_commanded_tip_offset():
     np.testing.assert_array_equal(obs[-6:-3], 0.0)
     np.testing.assert_allclose(obs[-3:], np.asarray(draw.lateral_error) * 1e3, atol=1e-4)
     assert np.linalg.norm(obs[-3:-1]) > 0.01  # a real lateral error, in mm
+
+
+def test_the_start_ik_is_traced_once_and_equals_the_inline_ik_bit_for_bit(monkeypatch):
+    """The reset's Newton IK is a jitted function of its own: a second env of the same scene
+    reuses its trace (MJX's kinematics is not traced again), and the start joint angles are
+    those of the same Newton steps written inline in the reset's graph, bit for bit."""
+    from peghole_mjx.control import kinematics
+
+    traced, mjx = [], kinematics.mjx
+
+    def counted_kinematics(m, d):
+        traced.append(1)
+        return mjx.kinematics(m, d)
+
+    counting = types.SimpleNamespace(kinematics=counted_kinematics, com_pos=mjx.com_pos)
+    monkeypatch.setattr(kinematics, "mjx", counting)
+    kinematics._newton_ik.clear_cache()
+    keys = jax.random.split(jax.random.PRNGKey(3), 4)
+    mujoco_engine = {"engine": "mujoco"}
+    first, second, third = (envs.load("RectExtract", config_overrides=mujoco_engine) for _ in "123")
+    q = jax.jit(jax.vmap(first.reset_start))(keys)["q"]
+    assert traced, "the IK's body was not traced"
+    n_first = len(traced)
+    jax.jit(jax.vmap(second.reset_start)).lower(keys)
+    assert len(traced) == n_first  # the second env's reset reused the trace
+
+    def inline(m, d0, q0, qadr, dadr, body_id, point_local, pos_target, mat_target, iterations):
+        statics = {"qadr": tuple(qadr), "dadr": tuple(dadr), "body_id": body_id}
+        statics |= {"point_local": tuple(point_local), "iterations": iterations}
+        return kinematics._newton_ik.__wrapped__(m, d0, q0, pos_target, mat_target, **statics)
+
+    monkeypatch.setattr(extraction, "newton_ik", inline)
+    q_inline = jax.jit(jax.vmap(third.reset_start))(keys)["q"]
+    assert len(traced) > n_first  # traced again, inline in the reset's graph
+    np.testing.assert_array_equal(np.asarray(q), np.asarray(q_inline))
+    assert float(jnp.abs(q - q[:1]).max()) > 0  # the four starts differ (moved holes)
