@@ -199,9 +199,14 @@ def versions_dict(names: Iterable[str] | None = None) -> dict[str, str]:
     return out
 
 
+def versions_field(versions: dict[str, str]) -> str:
+    """``name=version`` pairs separated by ``;`` (no commas: it is a CSV field)."""
+    return ";".join(f"{k}={v}" for k, v in versions.items())
+
+
 def versions_str(names: Iterable[str] | None = None) -> str:
-    """Compact ``name=version`` list separated by ``;`` (no commas: it is a CSV field)."""
-    return ";".join(f"{k}={v}" for k, v in versions_dict(names).items())
+    """This host's versions as one CSV field (:func:`versions_field`)."""
+    return versions_field(versions_dict(names))
 
 
 def cpu_label() -> str:

@@ -42,6 +42,7 @@ from benchmarks.common import (
     out_file,
     rel,
     table,
+    versions_field,
     write_rows,
 )
 from peghole_mjx import fileio
@@ -157,7 +158,7 @@ def write(out: Path, head: dict, rows: list[dict]) -> None:
             "episodes": r[who]["episodes"],
             "seed": head["seed"],
             "device": doc["device"],
-            "versions": ";".join(f"{k}={v}" for k, v in doc["versions"].items()),
+            "versions": versions_field(doc["versions"]),
             "date": r["date"],
         }
         for r in rows

@@ -53,6 +53,7 @@ from benchmarks.common import (
     out_file,
     rel,
     table,
+    versions_field,
     write_rows,
 )
 from benchmarks.evals.cross_engine import paired_difference
@@ -414,7 +415,7 @@ def write(out: Path, head: dict, rows: list[dict]) -> None:
     doc = {**head, **provenance(), "complete": [r["cell"] for r in rows] == head["cells_planned"]}
     doc["cells"] = rows
     fileio.write_text(out, json.dumps(doc, indent=2) + "\n")
-    versions = ";".join(f"{k}={x}" for k, x in doc["versions"].items())
+    versions = versions_field(doc["versions"])
     lines = []
     for r in rows:
         for who in METHODS:

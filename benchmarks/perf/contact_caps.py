@@ -45,7 +45,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from benchmarks.common import PERF_RESULTS, out_file, write_rows
+from benchmarks.common import PERF_RESULTS, out_file, versions_field, write_rows
 from benchmarks.perf.engines import scripted_action
 from peghole_mjx import envs
 from peghole_mjx.envs.contacts import ContactReplay, restart_done
@@ -125,8 +125,8 @@ CSV_FIELDS = (
 def csv_rows(result: dict) -> list[dict]:
     """The rows of a contact_caps JSON with its device, versions and date (a field a row does
     not have stays empty)."""
-    versions = ";".join(f"{k}={v}" for k, v in result["versions"].items())
-    stamp = {"device": result["device"], "versions": versions, "date": result["date"]}
+    stamp = {"device": result["device"], "date": result["date"]}
+    stamp["versions"] = versions_field(result["versions"])
     return [{k: r.get(k) for k in CSV_FIELDS} | stamp for r in result["rows"]]
 
 

@@ -35,6 +35,7 @@ from benchmarks.common import (
     out_file,
     rel,
     table,
+    versions_field,
     write_rows,
 )
 from benchmarks.perf.cost import cost_variant, measure_env, without_persistent_cache
@@ -253,7 +254,7 @@ def main(argv: list[str] | None = None) -> int:
 def csv_rows(result: dict) -> list[dict]:
     """One row per task of a task_cost JSON: sizes, XLA bytes and FLOPs per world (MB,
     MFLOP), compile time, with the file's device, versions and date."""
-    versions = ";".join(f"{k}={v}" for k, v in result["versions"].items())
+    versions = versions_field(result["versions"])
     out = []
     for r in result["rows"]:
         x = r["xla"]

@@ -466,7 +466,10 @@ def add_hull_geoms(
     """Add one mesh geom ``{prefix}_hull{i:03d}`` per convex piece to ``body`` (collisions
     through explicit pairs only); ``mass`` is shared among the pieces by volume. Returns the
     geom names."""
-    vols = np.array([hull_volume(h) for h in hulls]) if mass is not None else None
+    shares = None
+    if mass is not None:
+        vols = np.array([hull_volume(h) for h in hulls])
+        shares = mass * vols / vols.sum()
     names = []
     for i, h in enumerate(hulls):
         name = f"{prefix}_hull{i:03d}"
@@ -475,8 +478,8 @@ def add_hull_geoms(
         geom = body.add_geom(
             name=name, type=mujoco.mjtGeom.mjGEOM_MESH, meshname=mesh.name, contype=0, conaffinity=0
         )
-        if vols is not None:
-            geom.mass = mass * vols[i] / vols.sum()
+        if shares is not None:
+            geom.mass = shares[i]
         if rgba is not None:
             geom.rgba = list(rgba)
         names.append(name)
