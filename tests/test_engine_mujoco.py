@@ -11,6 +11,7 @@ import numpy as np
 import pytest
 
 from benchmarks.common import PERF_RESULTS
+from benchmarks.studies import engine_contacts
 from peghole_mjx import envs
 from peghole_mjx.control.reference import impedance_torque, impedance_torque_c
 from peghole_mjx.envs.engine_mujoco import STATE_SPEC, MujocoEngine
@@ -254,3 +255,16 @@ def test_engine_bad_input_is_one_line():
             "<mujoco><worldbody><body><freejoint/><geom size='.1'/></body></worldbody></mujoco>"
         )
         MujocoEngine(spec.compile(), env._ctrl, None, 10)
+
+
+def test_mjx_in_float64_meets_mujoco_c_at_the_same_box_scene_states():
+    """benchmarks/studies/engine_contacts.py: at the same states of a scripted pull on the box
+    scene, MJX's forward pass in float64 reads MuJoCo C's F/T force with the same active
+    contacts (so the engines' F_z difference there is MJX's float32), and the study switches
+    JAX back to float32 after it."""
+    rows = engine_contacts.record_states("RectExtract", 2, [20])
+    r = engine_contacts.compare("RectExtract", rows, "float64")
+    assert r["states"] == 2 and r["mean_abs_fz_N_mujoco"] > 1.0  # in contact
+    assert r["mean_abs_dfz_N"] < 0.01 and r["contact_count_differs_share"] == 0
+    assert not jax.config.jax_enable_x64
+    assert jnp.zeros(1).dtype == jnp.float32
