@@ -32,19 +32,12 @@ import mujoco
 import numpy as np
 from tqdm import tqdm
 
-from benchmarks.common import (
-    STUDIES_RESULTS,
-    cpu_device,
-    cpu_label,
-    rel,
-    table,
-    utc_now,
-    versions_dict,
-)
+from benchmarks.common import STUDIES_RESULTS, cpu_label, rel, table
 from peghole_mjx import envs
 from peghole_mjx._mjx import mjx
 from peghole_mjx.envs.engine_mujoco import STATE_SPEC
 from peghole_mjx.envs.rollout import scripted_policy
+from peghole_mjx.provenance import provenance
 
 PRECISIONS = ("float32", "float64")
 
@@ -129,7 +122,7 @@ def engine_contacts_table() -> str:
 
 def main(argv: list[str] | None = None) -> int:
     p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    p.add_argument("--envs", nargs="+", default=["RectExtract", "DualExtract"])
+    p.add_argument("--envs", nargs="+", default=list(envs.ALL_ENVS))
     p.add_argument("--worlds", type=int, default=8)
     p.add_argument("--steps", default="20,60,100", help="control steps, comma separated")
     p.add_argument("--seed", type=int, default=0)
@@ -159,9 +152,7 @@ def main(argv: list[str] | None = None) -> int:
         "worlds": args.worlds,
         "steps": steps,
         "seed": args.seed,
-        "device": cpu_device(),
-        "date": utc_now(),
-        "versions": versions_dict(("mujoco", "mjx", "jax")),
+        **provenance(),
         "rows": rows,
     }
     out.write_text(json.dumps(result, indent=2) + "\n")
