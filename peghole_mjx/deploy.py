@@ -25,6 +25,17 @@ Sensor readings that are not finite (NaN or infinity) are *refused*: :class:`Sen
 finite reading comes (decided 2026-12-02: a command computed from a zeroed reading, what the
 simulator does with a non-finite observation entry, is not a safe thing to send a robot).
 
+What cannot be trusted is refused at load, in one line (decided 2026-12-04): a
+``policy.onnx`` whose SHA-256 is not the one ``action.json`` records (an edited or swapped
+file); a model that does not take one observation input and give one action output of the
+recorded sizes; an ``action.json`` holding NaN, infinity, JSON nested too deeply, an action
+size below 6 (the tip and feed-forward entries), or a gain, damping ratio or compliance centre
+outside the robot's ranges (:data:`ROBOT_RANGES`: the KUKA iiwa's Cartesian impedance mode;
+L_C on the peg, between the tip and the peg length). At run time a gain or L_C given to
+:meth:`DeployedPolicy.reset` that is not finite or out of those ranges is refused, as is an
+action that is not one vector of the action size, and a decoded command that is not finite or
+out of range: the state does not change, and the robot keeps its last command.
+
 This module imports neither JAX nor MuJoCo (tested: tests/test_export.py runs it with both
 blocked), so it runs on a robot PC with ``pip install numpy onnxruntime`` and this one file
 plus :mod:`peghole_mjx.errors` (the package's ``__init__`` imports neither). The mapping onto
@@ -33,6 +44,7 @@ a KUKA iiwa's Cartesian impedance mode: docs/guide/deploy.md.
 
 from __future__ import annotations
 
+import hashlib
 import json
 import math
 from dataclasses import dataclass
@@ -67,6 +79,18 @@ SOURCES = frozenset(
         "command_offset_m",
     }
 )
+
+
+#: the robot's ranges (KUKA LBR iiwa Cartesian impedance mode, as ``peghole_mjx.validation``'s
+#: ``IIWA_K_TRANS``, ``IIWA_K_ROT`` and ``stiffness.damping_ratio``): inclusive (lo, hi)
+ROBOT_RANGES: dict[str, tuple[float, float]] = {
+    "k_xy_N_m": (0.0, 5000.0),
+    "k_z_N_m": (0.0, 5000.0),
+    "k_rot_Nm_rad": (0.0, 300.0),
+    "damping_ratio": (0.1, 1.0),
+}
+#: the smallest action: tip step (3) and feed-forward step (3); gains follow
+MIN_ACTION_SIZE = 6
 
 
 class SensorError(UserInputError):
@@ -143,6 +167,28 @@ def _vector(value: Any, size: int, name: str) -> np.ndarray:
     return x
 
 
+def _not_finite(path: Path, constant: str):
+    raise CorruptFileError(f"{path} holds {constant}: every number of an export is finite")
+
+
+def _finite_float(path: Path, text: str) -> float:
+    x = float(text)
+    if not math.isfinite(x):
+        raise CorruptFileError(f"{path} holds {text} (not finite): every number is finite")
+    return x
+
+
+def _in_range(value: Any, name: str, lo: float, hi: float, error=UserInputError) -> float:
+    """``value`` as a float within [lo, hi], else ``error`` naming it (one line)."""
+    try:
+        x = float(value)
+    except (TypeError, ValueError):
+        raise error(f"{name} must be a number, got {value!r}") from None
+    if not (math.isfinite(x) and lo <= x <= hi):
+        raise error(f"{name} = {x!r} is refused: it must be finite and within [{lo:g}, {hi:g}]")
+    return x
+
+
 def read_spec(folder: str | Path) -> dict[str, Any]:
     """``action.json`` of an exported folder, its format checked (one line otherwise)."""
     path = Path(folder) / ACTION_FILE
@@ -152,7 +198,15 @@ def read_spec(folder: str | Path) -> dict[str, Any]:
             "peghole export POLICY --out DIR"
         )
     try:
-        spec = json.loads(path.read_text())
+        spec = json.loads(
+            path.read_text(),
+            parse_constant=lambda c: _not_finite(path, c),
+            parse_float=lambda t: _finite_float(path, t),
+        )
+    except RecursionError:
+        raise CorruptFileError(f"{path} is nested too deeply to be an export") from None
+    except CorruptFileError:
+        raise
     except (ValueError, UnicodeDecodeError) as exc:
         raise CorruptFileError(f"{path} is not valid JSON ({exc})") from None
     if not isinstance(spec, dict) or spec.get("format") != FORMAT_NAME:
@@ -181,6 +235,8 @@ class DeployedPolicy:
         self.spec = spec
         try:
             self._parse(spec)
+        except CorruptFileError:
+            raise
         except (KeyError, TypeError, ValueError, AttributeError) as exc:
             raise CorruptFileError(
                 f"{self.folder / ACTION_FILE} is damaged: a missing or malformed entry ({exc!r})"
@@ -190,24 +246,46 @@ class DeployedPolicy:
         onnx_path = self.folder / self._onnx_file
         if not onnx_path.is_file():
             raise UserInputError(f"{self.folder}: {onnx_path.name} is missing")
+        data = onnx_path.read_bytes()  # read once: the bytes loaded are the bytes hashed
         options = ort.SessionOptions()
         options.intra_op_num_threads = max(1, int(threads))
         options.inter_op_num_threads = 1
         try:
-            self._session = ort.InferenceSession(
-                str(onnx_path), options, providers=["CPUExecutionProvider"]
-            )
+            self._session = ort.InferenceSession(data, options, providers=["CPUExecutionProvider"])
         except Exception as exc:  # onnxruntime raises its own classes for a damaged file
             msg = " ".join(str(exc).split())[:200]
             raise CorruptFileError(f"{onnx_path} cannot be loaded ({msg})") from None
-        (inp,) = self._session.get_inputs()
-        self._input = inp.name
-        if inp.shape[-1] != self.observation_size:
+        # after the load: a truncated file is named as one that cannot be loaded
+        digest = hashlib.sha256(data).hexdigest()
+        if digest != self._onnx_sha256:
             raise CorruptFileError(
-                f"{onnx_path} takes observations of size {inp.shape[-1]}, {ACTION_FILE} "
-                f"says {self.observation_size}"
+                f"{onnx_path} is not the model {ACTION_FILE} was written for (SHA-256 "
+                f"{digest[:12]}..., recorded {str(self._onnx_sha256)[:12]}...): refused; "
+                "export the policy again"
             )
+        self._input = self._check_signature(onnx_path)
         self._started = False
+
+    def _check_signature(self, onnx_path: Path) -> str:
+        """The model's input name, once it is known to take one (batch, observation size)
+        input and give one (batch, action size) output; else CorruptFileError."""
+        inputs, outputs = self._session.get_inputs(), self._session.get_outputs()
+        if len(inputs) != 1 or len(outputs) != 1:
+            raise CorruptFileError(
+                f"{onnx_path} has {len(inputs)} inputs and {len(outputs)} outputs: an exported "
+                "policy has one of each (observation -> action)"
+            )
+        for arg, size, what in (
+            (inputs[0], self.observation_size, "observations"),
+            (outputs[0], self.action_size, "actions"),
+        ):
+            shape = list(arg.shape or [])
+            if len(shape) != 2 or shape[-1] != size:
+                raise CorruptFileError(
+                    f"{onnx_path} {'takes' if what == 'observations' else 'gives'} {what} of "
+                    f"shape {shape}, {ACTION_FILE} says (batch, {size})"
+                )
+        return inputs[0].name
 
     def _parse(self, spec: dict[str, Any]) -> None:
         """The numbers of ``action.json`` this class uses."""
@@ -237,9 +315,72 @@ class DeployedPolicy:
         self._gravity = np.asarray(tool["gravity_m_s2"], np.float64)
         self._success_m = float(spec["episode"]["success_margin_m"])
         self._onnx_file = str(spec["onnx"]["file"])
+        self._onnx_sha256 = str(spec["onnx"]["sha256"])
+        self._peg_length = float(tool["peg_length_m"])
         unknown = sorted({e[0] for e in self._entries} - SOURCES)
         if unknown or len(self._entries) != self.observation_size:
             raise ValueError(f"observation entries: {len(self._entries)}, unknown {unknown}")
+        self._check_decoding()
+
+    def _ranges(self) -> dict[str, tuple[float, float]]:
+        """Each gain's allowed range: :data:`ROBOT_RANGES`, L_C on the peg."""
+        return {**ROBOT_RANGES, "L_C_m": (0.0, self._peg_length)}
+
+    def _check_decoding(self) -> None:
+        """Refuse (CorruptFileError, one line) an action decoding that could command something
+        the robot cannot take: sizes, steps and caps, gains and their ranges."""
+        path = self.folder / ACTION_FILE
+
+        def bad(msg: str):
+            raise CorruptFileError(f"{path}: {msg}")
+
+        if self.observation_size < 1:
+            bad(f"observation size {self.observation_size}")
+        if self.action_size < MIN_ACTION_SIZE:
+            bad(
+                f"action size {self.action_size}: an exported policy's action has at least "
+                f"{MIN_ACTION_SIZE} entries (tip step, feed-forward step)"
+            )
+        if not self.period_s > 0:
+            bad(f"control period {self.period_s!r} s")
+        for name, v, shape in (
+            ("decode.tip_step_m", self._tip_step, (3,)),
+            ("decode.force_ff_cap_N", self._ff_cap, (3,)),
+            ("tool.tip_in_flange_m", self._tip_in_flange, (3,)),
+            ("tool.gravity_m_s2", self._gravity, (3,)),
+            ("tool.tool_down_rotation", self._tool_down, (3, 3)),
+        ):
+            if v.shape != shape or not np.all(np.isfinite(v)):
+                bad(f"{name} must be {shape} finite numbers")
+        if np.any(self._tip_step < 0) or np.any(self._ff_cap < 0) or self._ff_step < 0:
+            bad("a step or cap is negative")
+        if not (self._peg_length > 0 and self._peg_mass > 0):
+            bad("the peg's length and mass must be positive")
+        ranges = self._ranges()
+        for key, (lo, hi) in (
+            ("k_z_N_m", ranges["k_z_N_m"]),
+            ("damping_ratio", ranges["damping_ratio"]),
+        ):
+            value = self._k_z if key == "k_z_N_m" else self._zeta
+            _in_range(value, f"decode.{key}", lo, hi, CorruptFileError)
+        for key in ("k_xy_N_m", "k_rot_Nm_rad", "L_C_m"):
+            if key not in self._fixed:
+                bad(f"decode.fixed_gains has no {key}")
+            _in_range(self._fixed[key], f"decode.fixed_gains.{key}", *ranges[key], CorruptFileError)
+        units = {"k_xy": "k_xy_N_m", "k_rot": "k_rot_Nm_rad", "L_C": "L_C_m"}
+        seen = set()
+        for name, (i, lo, hi) in self._gains.items():
+            if name not in units:
+                bad(f"unknown learned gain {name!r}")
+            if not MIN_ACTION_SIZE <= i < self.action_size or i in seen:
+                bad(f"learned gain {name} at action index {i}")
+            seen.add(i)
+            rlo, rhi = ranges[units[name]]
+            if not (rlo <= lo <= hi <= rhi):
+                bad(
+                    f"learned gain {name} on [{lo:g}, {hi:g}], outside the robot's range "
+                    f"[{rlo:g}, {rhi:g}]"
+                )
 
     # ------------------------------------------------------------------ episode state
     def reset(
@@ -256,13 +397,23 @@ class DeployedPolicy:
         orientation is ``commanded_tilt_rad`` (a rotation vector from straight down, held
         throughout), the feed-forward force 0, the previous action 0, and the gains their
         fixed values (``action.json`` ``decode.fixed_gains``) unless given."""
-        self._cmd_tip = _vector(commanded_tip_m, 3, "commanded_tip_m")
+        # every value checked before any is set: a refused reset changes nothing
+        tip = _vector(commanded_tip_m, 3, "commanded_tip_m")
         tilt = _vector(commanded_tilt_rad, 3, "commanded_tilt_rad")
+        ranges = self._ranges()
+        given = {"k_xy_N_m": k_xy_N_m, "k_rot_Nm_rad": k_rot_Nm_rad, "L_C_m": L_C_m}
+        gains = {
+            k: self._fixed[k] if v is None else _in_range(v, k, *ranges[k])
+            for k, v in given.items()
+        }
+        self._cmd_tip = tip
         self._cmd_rot = mat_from_rotvec(tilt) @ self._tool_down
         self._ff = np.zeros(3)
-        self._k_xy = self._fixed["k_xy_N_m"] if k_xy_N_m is None else float(k_xy_N_m)
-        self._k_rot = self._fixed["k_rot_Nm_rad"] if k_rot_Nm_rad is None else float(k_rot_Nm_rad)
-        self._L_C = self._fixed["L_C_m"] if L_C_m is None else float(L_C_m)
+        self._k_xy, self._k_rot, self._L_C = (
+            gains["k_xy_N_m"],
+            gains["k_rot_Nm_rad"],
+            gains["L_C_m"],
+        )
         self._prev_action = np.zeros(self.action_size)
         self._step = 0
         self._started = True
@@ -348,16 +499,32 @@ class DeployedPolicy:
         by ``force_ff_step_N`` x action[3:6] within ``force_ff_cap_N``; each learned gain is
         set from its action on [lo, hi]."""
         self._need_reset()
-        a = np.asarray(action, np.float64)
+        try:
+            a = np.asarray(action, np.float64)
+        except (TypeError, ValueError):
+            raise UserInputError(f"action must be {self.action_size} numbers") from None
         if a.shape != (self.action_size,):
-            raise UserInputError(f"action must be {self.action_size} numbers, got {a.shape}")
+            raise UserInputError(
+                f"action of shape {a.shape} refused: one action is a vector of shape "
+                f"({self.action_size},) (a batch or a column is not one action)"
+            )
         a = np.clip(np.where(np.isnan(a), 0.0, a), -1.0, 1.0)
+        # the new state is computed and checked first: a refused command changes nothing
         prev = self._cmd_tip
-        self._cmd_tip = prev + a[:3] * self._tip_step
-        self._ff = np.clip(self._ff + a[3:6] * self._ff_step, -self._ff_cap, self._ff_cap)
+        tip = prev + a[:3] * self._tip_step
+        ff = np.clip(self._ff + a[3:6] * self._ff_step, -self._ff_cap, self._ff_cap)
         gains = {"k_xy": self._k_xy, "k_rot": self._k_rot, "L_C": self._L_C}
         for name, (i, lo, hi) in self._gains.items():
-            gains[name] = lo + 0.5 * (a[i] + 1.0) * (hi - lo)
+            gains[name] = min(max(lo + 0.5 * (a[i] + 1.0) * (hi - lo), lo), hi)
+        ranges = self._ranges()
+        for name, key in (("k_xy", "k_xy_N_m"), ("k_rot", "k_rot_Nm_rad"), ("L_C", "L_C_m")):
+            _in_range(gains[name], f"decoded {key}", *ranges[key])
+        if not (np.all(np.isfinite(tip)) and np.all(np.isfinite(ff))):
+            raise UserInputError(
+                f"decoded command not finite (tip {tip}, feed-forward {ff}): refused, "
+                "the robot keeps its last command"
+            )
+        self._cmd_tip, self._ff = tip, ff
         self._k_xy, self._k_rot, self._L_C = gains["k_xy"], gains["k_rot"], gains["L_C"]
         self._prev_action = a
         self._step += 1
@@ -387,6 +554,7 @@ class DeployedPolicy:
 
 __all__ = [
     "EXPORT_FORMAT_VERSION",
+    "ROBOT_RANGES",
     "DeployedPolicy",
     "ImpedanceCommand",
     "SensorError",

@@ -3,15 +3,28 @@
 A reader (or a run resumed after kill -9 or a power cut) sees either the old file or the
 complete new one, never a half-written one; a failed write (a full disk, a read-only folder)
 leaves the old file as it was. ``check_out_*`` tell a bad output path before the work starts.
+
+**Ownership** (decided 2026-12-04): the program deletes or replaces only what it can prove it
+wrote. Every folder written whole (:func:`replace_dir`: ``peghole export``, ``peghole task
+make``, a saved policy, a checkpoint) holds :data:`OWNER_MANIFEST`, the list of the files the
+program wrote there. Temporary and set-aside folders get unique names beside the target
+(:func:`temp_dir_beside`, ``tempfile.mkdtemp``), never a fixed ``NAME.tmp`` or ``NAME.old``,
+so a folder of the user's with such a name is never touched. A folder that holds a file the
+program cannot prove it wrote (not in its manifest; in a folder written before the manifest
+existed, a name the writer does not write) is not replaced: the command is refused in one
+line naming those files (:func:`foreign_files`), and nothing is deleted.
 """
 
 from __future__ import annotations
 
 import contextlib
 import hashlib
+import json
 import os
+import re
 import shutil
-from collections.abc import Callable, Iterator
+import tempfile
+from collections.abc import Callable, Iterable, Iterator
 from pathlib import Path
 from typing import IO
 
@@ -101,19 +114,130 @@ def write_many(files: dict[Path, str]) -> None:
         fsync_dir(parent)
 
 
-def replace_dir(tmp: Path, final: Path) -> None:
-    """Move a completely written folder ``tmp`` onto ``final`` (replacing an old one)."""
+#: the file, in every folder the program writes whole, that lists the files it wrote there
+OWNER_MANIFEST = ".peghole_manifest.json"
+
+
+def temp_dir_beside(target: str | Path, tag: str = "tmp") -> Path:
+    """A new, empty folder with a unique name beside ``target`` (``.NAME.tag-XXXXXXXX``), made
+    by ``tempfile.mkdtemp``: it never is, nor replaces, a folder of the user's."""
+    target = Path(target).absolute()
+    path = Path(tempfile.mkdtemp(dir=target.parent, prefix=f".{target.name}.{tag}-"))
+    mask = os.umask(0o022)  # mkdtemp makes it 0700: give it a plain mkdir's mode
+    os.umask(mask)
+    os.chmod(path, 0o777 & ~mask)
+    return path
+
+
+def _files_under(folder: Path) -> list[str]:
+    """Every file (or link, or other non-folder) under ``folder``, as POSIX relative paths."""
+    out = []
+    for root, dirs, files in os.walk(folder):
+        rel = Path(root).relative_to(folder)
+        # a link to a folder is listed as an entry, never followed
+        out += [(rel / d).as_posix() for d in dirs if (Path(root) / d).is_symlink()]
+        out += [(rel / f).as_posix() for f in files]
+    return sorted(out)
+
+
+def owned_files(folder: str | Path) -> set[str] | None:
+    """The files ``folder``'s :data:`OWNER_MANIFEST` says the program wrote, or None when it
+    has none (or an unreadable one: then nothing in it is proven ours)."""
+    path = Path(folder) / OWNER_MANIFEST
+    try:
+        files = json.loads(path.read_text())["files"]
+    except (OSError, ValueError, KeyError, TypeError, RecursionError):
+        return None
+    if not isinstance(files, list) or not all(isinstance(f, str) for f in files):
+        return None
+    return set(files)
+
+
+def write_owner_manifest(folder: str | Path, files: Iterable[str] | None = None) -> None:
+    """Record in ``folder`` the files the program wrote there (default: every file now in
+    it)."""
+    folder = Path(folder)
+    names = sorted(set(_files_under(folder) if files is None else files) - {OWNER_MANIFEST})
+    text = json.dumps({"written_by": "peghole_mjx", "files": names}, indent=1) + "\n"
+    write_text(folder / OWNER_MANIFEST, text)
+
+
+def foreign_files(folder: str | Path, known: Iterable[str] = ()) -> list[str]:
+    """The files under ``folder`` the program cannot prove it wrote: those not in its
+    :data:`OWNER_MANIFEST`; when it has none (a folder written before 2026-12-04), those
+    whose first path component is not in ``known`` (the names its writer writes). What an
+    atomic write of one of ours left behind when killed (``.NAME.PID.tmp``) counts as ours."""
+    folder = Path(folder)
+    if not folder.is_dir():
+        return []
+    owned = owned_files(folder)
+    known = set(known)
+
+    def ours(rel: str) -> bool:
+        if owned is not None:
+            return rel in owned or rel == OWNER_MANIFEST
+        return rel.split("/", 1)[0] in known | {OWNER_MANIFEST}
+
+    out = []
+    for rel in _files_under(folder):
+        left = re.fullmatch(r"((?:.*/)?)\.([^/]+)\.\d+\.tmp", rel)  # an atomic write's leftover
+        if ours(rel) or (left and ours(left[1] + left[2])):
+            continue
+        out.append(rel)
+    return out
+
+
+def describe_files(names: list[str], limit: int = 5) -> str:
+    """``a, b, c and 4 more`` for a one-line message."""
+    shown = ", ".join(names[:limit])
+    return shown + (f" and {len(names) - limit} more" if len(names) > limit else "")
+
+
+def check_replaceable(folder: str | Path, known: Iterable[str] = (), what: str = "--out") -> None:
+    """Refuse (one line, UserInputError) to replace ``folder`` when it holds files the
+    program did not write (:func:`foreign_files`); nothing is deleted."""
+    foreign = foreign_files(folder, known)
+    if foreign:
+        raise UserInputError(
+            f"{what} {folder} holds files peghole_mjx did not write ({describe_files(foreign)}): "
+            "nothing was replaced; move them away or choose another folder"
+        )
+
+
+def replace_dir(
+    tmp: Path,
+    final: Path,
+    known: Iterable[str] | None = None,
+    owned: Iterable[str] | None = None,
+) -> None:
+    """Move a completely written folder ``tmp`` (made by :func:`temp_dir_beside`) onto
+    ``final``, replacing an old one only when every file in it is the program's.
+
+    ``tmp`` gets an :data:`OWNER_MANIFEST` of ``owned`` (default: every file in it). An
+    existing ``final`` with a file the program cannot prove it wrote (:func:`foreign_files`;
+    ``known`` default: the names in ``tmp``) is refused in one line: ``tmp`` is removed and
+    ``final`` left as it was. Otherwise ``final`` is renamed to a unique name beside it,
+    ``tmp`` renamed onto ``final``, and the old folder removed."""
+    tmp, final = Path(tmp), Path(final)
+    names = {p.name for p in tmp.iterdir()}
+    write_owner_manifest(tmp, owned)
     for f in tmp.iterdir():
-        if f.is_file():
+        if f.is_file() and not f.is_symlink():
             with open(f, "rb") as fh:
                 os.fsync(fh.fileno())
     fsync_dir(tmp)
     old = None
-    if final.exists():
-        old = final.with_name(final.name + ".old")
-        if old.exists():
-            shutil.rmtree(old)
-        os.replace(final, old)
+    if final.exists() or final.is_symlink():
+        if not final.is_dir() or final.is_symlink():
+            shutil.rmtree(tmp, ignore_errors=True)
+            raise UserInputError(f"{final} is not a folder: nothing was replaced")
+        try:
+            check_replaceable(final, names if known is None else known, what="")
+        except UserInputError as exc:
+            shutil.rmtree(tmp, ignore_errors=True)
+            raise UserInputError(str(exc).strip()) from None
+        old = temp_dir_beside(final, "old")
+        os.replace(final, old)  # onto the new empty folder: a rename, atomic
     os.replace(tmp, final)
     fsync_dir(final.parent)
     if old is not None:

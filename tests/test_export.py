@@ -74,7 +74,8 @@ def test_export_writes_a_checked_onnx_model_and_its_action_decoding(exports):
     import onnx
 
     folder = exports("rect")
-    assert sorted(p.name for p in folder.iterdir()) == ["action.json", "policy.json", "policy.onnx"]
+    names = sorted(p.name for p in folder.iterdir())
+    assert names == [".peghole_manifest.json", "action.json", "policy.json", "policy.onnx"]
     model = onnx.load(str(folder / "policy.onnx"))
     onnx.checker.check_model(model, full_check=True)
     assert [n.op_type for n in model.graph.node] == [
@@ -333,10 +334,13 @@ def test_export_refuses_an_unwritable_out(tmp_path, capsys):
 def test_export_force_replaces_an_earlier_export(exports, tmp_path, capsys):
     out = tmp_path / "again"
     shutil.copytree(exports("rect"), out)
-    (out / "stale.txt").write_text("old")
+    (out / "stale.txt").write_text("old")  # a file of the user's: --force refuses, keeps it
+    rc, stdout, err = peghole(["export", "dual", "--out", out, "--force"], capsys)
+    assert rc == 2 and "stale.txt" in err and len(err.strip().splitlines()) == 1
+    assert (out / "stale.txt").read_text() == "old"
+    (out / "stale.txt").unlink()
     rc, stdout, err = peghole(["export", "dual", "--out", out, "--force"], capsys)
     assert rc == 0, err
     assert "ONNX Runtime vs JAX actions differ by at most" in stdout
-    assert not (out / "stale.txt").exists()
     assert json.loads((out / "action.json").read_text())["policy"]["env"] == "DualExtract"
     assert DeployedPolicy(out).observation_size == 15

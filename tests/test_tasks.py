@@ -89,7 +89,10 @@ def test_task_folder_round_trip(hex_task, capsys):
     man = json.loads((out / tf.MANIFEST).read_text())
     assert man["format"] == tf.FORMAT and man["format_version"] == tf.FORMAT_VERSION
     assert sorted(man["files"]) == sorted(tf.FILES)
-    assert sorted(p.name for p in out.iterdir()) == sorted([*tf.FILES, tf.MANIFEST])
+    from peghole_mjx.fileio import OWNER_MANIFEST
+
+    names = sorted(p.name for p in out.iterdir())
+    assert names == sorted([*tf.FILES, tf.MANIFEST, OWNER_MANIFEST])
     spec = tf.load_task(out)
     assert len(spec.peg_hulls) == 1 and len(spec.hole_hulls) == 7
     assert spec.length_mm == pytest.approx(50.0, abs=1e-6)

@@ -158,27 +158,40 @@ def _init_normaliser(network: dict[str, Any]):
     )
 
 
+#: the files :func:`save_policy` writes
+POLICY_FOLDER_FILES = ("policy.json", "params.npz")
+
+
 def save_policy(path: str | Path, params, meta: dict[str, Any], atomic: bool = True) -> Path:
     """Write ``policy.json`` and ``params.npz`` into ``path``.
 
-    ``atomic``: both files are written into a temporary folder that then replaces ``path``
-    (both files or neither); otherwise into ``path`` itself (already a temporary folder).
+    ``atomic``: both files are written into a uniquely named temporary folder beside
+    ``path`` that then replaces it (both files or neither; an existing ``path`` holding files
+    the program did not write is refused, :func:`peghole_mjx.fileio.replace_dir`); otherwise
+    into ``path`` itself (already a temporary folder).
     """
     path = Path(path)
-    target = path.with_name(path.name + ".tmp") if atomic else path
-    if atomic and target.exists():
-        shutil.rmtree(target)
-    target.mkdir(parents=True, exist_ok=True)
-    arrays = named_leaves(params)
-    fileio.write_bytes_with(target / "params.npz", lambda f: np.savez(f, **arrays))
-    meta = {
-        "format_version": FORMAT_VERSION,
-        **{k: v for k, v in meta.items() if k != "format_version"},
-    }
-    text = json.dumps(meta, indent=2, default=_json_default) + "\n"
-    fileio.write_text(target / "policy.json", text)
     if atomic:
-        fileio.replace_dir(target, path)
+        path.absolute().parent.mkdir(parents=True, exist_ok=True)
+        target = fileio.temp_dir_beside(path)
+    else:
+        target = path
+        target.mkdir(parents=True, exist_ok=True)
+    try:
+        arrays = named_leaves(params)
+        fileio.write_bytes_with(target / "params.npz", lambda f: np.savez(f, **arrays))
+        meta = {
+            "format_version": FORMAT_VERSION,
+            **{k: v for k, v in meta.items() if k != "format_version"},
+        }
+        text = json.dumps(meta, indent=2, default=_json_default) + "\n"
+        fileio.write_text(target / "policy.json", text)
+    except BaseException:
+        if atomic:
+            shutil.rmtree(target, ignore_errors=True)
+        raise
+    if atomic:
+        fileio.replace_dir(target, path, known=POLICY_FOLDER_FILES)
     return path
 
 
@@ -430,15 +443,19 @@ def upgrade_policy(path: str | Path) -> bool:
     meta, arrays = _read(path)
     if meta["format_version"] == FORMAT_VERSION:
         return False
-    tmp = path.with_name(path.name + ".tmp")
-    if tmp.exists():
-        shutil.rmtree(tmp)
-    shutil.copytree(path, tmp)
-    fileio.write_bytes_with(tmp / "params.npz", lambda f: np.savez(f, **arrays))
-    meta = {**meta, "format_version": FORMAT_VERSION}
-    text = json.dumps(meta, indent=2, default=_json_default) + "\n"
-    fileio.write_text(tmp / "policy.json", text)
-    fileio.replace_dir(tmp, path)
+    tmp = fileio.temp_dir_beside(path)
+    try:
+        shutil.copytree(path, tmp, dirs_exist_ok=True, symlinks=True)
+        fileio.write_bytes_with(tmp / "params.npz", lambda f: np.savez(f, **arrays))
+        meta = {**meta, "format_version": FORMAT_VERSION}
+        text = json.dumps(meta, indent=2, default=_json_default) + "\n"
+        fileio.write_text(tmp / "policy.json", text)
+    except BaseException:
+        shutil.rmtree(tmp, ignore_errors=True)
+        raise
+    # every file of the folder is carried over (the user's too); only ours are listed as ours
+    owned = (fileio.owned_files(path) or set()) | set(POLICY_FOLDER_FILES)
+    fileio.replace_dir(tmp, path, owned=owned)
     return True
 
 

@@ -385,10 +385,17 @@ def _params_sha256(params) -> str:
 
 
 # ---------------------------------------------------------------------- export
+#: the files an export writes (an export written before 2026-12-04 has no ownership manifest:
+#: these names are what ``--force`` may replace in it)
+EXPORT_FILES = (ONNX_FILE, ACTION_FILE, POLICY_FILE, "verification.json")
+
+
 def check_out(out: Path, force: bool) -> None:
     """Refuse (one line) an ``--out`` that cannot take the export: an existing file, a
     non-empty folder without ``force``, with ``force`` a non-empty folder that is not an
-    earlier export (so ``--force`` never deletes anything else), an unwritable parent."""
+    earlier export or that holds files the program did not write (named; ``--force``
+    replaces only the program's own files, :func:`peghole_mjx.fileio.foreign_files`), an
+    unwritable parent."""
     if out.exists() and not out.is_dir():
         raise UserInputError(f"--out {out} is an existing file, not a folder")
     if out.is_dir() and any(out.iterdir()):
@@ -402,6 +409,13 @@ def check_out(out: Path, force: bool) -> None:
                 f"--out {out} holds files that are not an export (no {ACTION_FILE}): --force "
                 "replaces only an earlier export"
             )
+        foreign = fileio.foreign_files(out, EXPORT_FILES)
+        if foreign:
+            raise UserInputError(
+                f"--out {out} holds files peghole_mjx did not write "
+                f"({fileio.describe_files(foreign)}): --force replaces only an earlier export's "
+                "own files; move them away or choose another folder"
+            )
     fileio.check_out_dir(out.resolve().parent, "--out")
 
 
@@ -409,7 +423,8 @@ def export_policy(
     policy: str | Path, out: str | Path, force: bool = False, verify: int = 0, seed: int = 0
 ) -> dict[str, Any]:
     """Export ``policy`` (a pretrained name or a policy folder) into ``out`` (all files or
-    none: written into ``out.tmp`` and moved). ``verify``: also run that many episodes of the
+    none: written into a uniquely named folder beside it and moved,
+    :func:`peghole_mjx.fileio.replace_dir`). ``verify``: also run that many episodes of the
     closed loop through the export and compare them with the JAX evaluation
     (:func:`compare_with_evaluation`, ``engine`` mujoco); a mismatch writes nothing and raises.
     Returns ``{"out", "max_abs_diff", "verification"}``."""
@@ -422,11 +437,8 @@ def export_policy(
     model = onnx_model(bundle.meta["network"], bundle.params)
     data = model.SerializeToString()
     spec = action_spec(bundle, env, hashlib.sha256(data).hexdigest())
-    target = out.resolve()  # "." or "a/.." name no folder to put a ".tmp" beside
-    tmp = target.with_name(target.name + ".tmp")
-    if tmp.exists():
-        shutil.rmtree(tmp)
-    tmp.mkdir()
+    target = out.resolve()  # "." or "a/.." name no folder to put a temporary one beside
+    tmp = fileio.temp_dir_beside(target)  # a unique name: never a folder of the user's
     try:
         fileio.write_bytes_with(tmp / ONNX_FILE, lambda f: f.write(data))
         fileio.write_text(tmp / ACTION_FILE, json.dumps(spec, indent=2) + "\n")
@@ -444,7 +456,7 @@ def export_policy(
     except BaseException:
         shutil.rmtree(tmp, ignore_errors=True)
         raise
-    fileio.replace_dir(tmp, target)
+    fileio.replace_dir(tmp, target, known=EXPORT_FILES)
     return {"out": str(out), "max_abs_diff": diff, "verification": verification}
 
 

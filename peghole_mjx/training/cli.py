@@ -18,6 +18,16 @@ from peghole_mjx.validation import arg, key_value
 COMMANDS = "peghole_mjx.training.commands"
 
 
+def run_dir(text: str) -> Path:
+    """A ``--out`` / ``--resume`` folder: an empty or blank path is refused (``Path("")`` is the
+    current folder, where a run would write over whatever is there)."""
+    if not text.strip():
+        raise argparse.ArgumentTypeError(
+            "an empty path is not a run folder (it would be the current folder): give a folder"
+        )
+    return Path(text)
+
+
 def add_parser(sub: argparse._SubParsersAction) -> None:
     """Add ``train``, ``evaluate`` and ``compare`` to ``sub``."""
     engine_help = (
@@ -54,8 +64,12 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     )
     t.add_argument("--profile", choices=("full", "cpu", "quick"), default="full")
     t.add_argument("--quick", action="store_true", help="same as --profile quick (CPU smoke run)")
-    t.add_argument("--out", type=Path, help="run directory (required unless --resume)")
-    t.add_argument("--resume", type=Path, metavar="DIR", help="continue the run in DIR")
+    t.add_argument(
+        "--out",
+        type=run_dir,
+        help="run directory: a new or empty folder (required unless --resume)",
+    )
+    t.add_argument("--resume", type=run_dir, metavar="DIR", help="continue the run in DIR")
     t.add_argument(
         "--set",
         dest="overrides",

@@ -13,7 +13,7 @@ from peghole_mjx import fileio
 from peghole_mjx.envs.engines import engine_overrides
 from peghole_mjx.envs.mesh_extract import absolute_task
 from peghole_mjx.errors import UserInputError
-from peghole_mjx.lock import RunLock
+from peghole_mjx.lock import LOCK_NAME, RunLock
 from peghole_mjx.policies import load_policy
 from peghole_mjx.training import evaluate as evaluation
 from peghole_mjx.training.cli import train_config_from_args
@@ -30,6 +30,7 @@ def fresh_run_config(args: argparse.Namespace):
     """The config of a new run in ``--out`` (refused when ``--out`` already holds one)."""
     if not args.env or not args.out:
         raise UserInputError("--env and --out are required (or --resume DIR)")
+    check_fresh_out(args.out)  # before the config, the lock or any compile: cheap
     cfg = train_config_from_args(args)
     fileio.check_out_dir(args.out)
     # a run that stopped before its first evaluation does not block its --out: the new run
@@ -39,6 +40,26 @@ def fresh_run_config(args: argparse.Namespace):
             f"{args.out} already holds a training run: use --resume {args.out} or a new --out"
         )
     return cfg
+
+
+#: what a folder may hold and still take a new run though it has no run.json: the lock of a
+#: run killed before it wrote run.json
+_FRESH_OK = frozenset({LOCK_NAME})
+
+
+def check_fresh_out(out: Path) -> None:
+    """Refuse (one line) a ``--out`` for a new run that is not a new or empty folder nor a run
+    folder of ours (it holds run.json): a new run never writes metrics.csv, summary.json or
+    anything else over a folder of the user's (decided 2026-12-04)."""
+    out = Path(out)
+    if not out.is_dir() or (out / "run.json").is_file():
+        return  # a file or a path under a file: check_out_dir's line; a run: fresh_run_config
+    entries = sorted(p.name for p in out.iterdir() if p.name not in _FRESH_OK)
+    if entries:
+        raise UserInputError(
+            f"--out {out} is not empty and is not a training run (no run.json): it holds "
+            f"{fileio.describe_files(entries)}; give a new or empty folder, or --resume a run"
+        )
 
 
 def cmd_train(args: argparse.Namespace) -> int:
