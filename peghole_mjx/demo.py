@@ -175,7 +175,9 @@ def _run_experiment(out: Path) -> dict:
 #: (benchmarks/results/baselines/train_rect_mujoco_cpu-2core.json: RL without the compliance
 #: strategy, the action's full speed limit) reached 0.95 eval success at 49.6k env steps. So
 #: on the cpu profile the demo trains that task, up to the profile's 100k env steps, and stops
-#: at the first evaluation at or above this success rate. Other profiles train RL + CS.
+#: at the first evaluation at or above this success rate. Other profiles train RL + CS. The
+#: reward is training's default (the outcome reward since 2026-12-04; the committed demo
+#: report of 2026-12-02 trained eq (4.4)).
 DEMO_CPU_STOP_AT_SUCCESS = 0.95
 
 
@@ -199,8 +201,11 @@ def _train_config(profile: str, engine: dict):
 
 def training_task(cfg) -> str:
     """The demo training's task in words (for the report)."""
-    cs = (cfg.env_overrides or {}).get("compliance_strategy", True)
-    return "RL + compliance strategy" if cs else "RL, compliance strategy off"
+    over = cfg.env_overrides or {}
+    cs = over.get("compliance_strategy", True)
+    kind = over.get("reward_config.kind", "thesis")  # older records: eq (4.4)
+    task = "RL + compliance strategy" if cs else "RL, compliance strategy off"
+    return f"{task}, {kind} reward"
 
 
 def output_bytes(cfg) -> int:

@@ -1,4 +1,5 @@
-"""Provenance stamped on every committed result: device, library versions, date."""
+"""Provenance stamped on every committed result: device, library versions, date (and, with
+:func:`run_provenance`, the command and the commit)."""
 
 from __future__ import annotations
 
@@ -6,6 +7,7 @@ import datetime as _dt
 import importlib.metadata
 import os
 import platform
+import subprocess
 
 import jax
 
@@ -63,3 +65,29 @@ def provenance() -> dict[str, object]:
         "versions": versions(),
         "date": utc_now(),
     }
+
+
+def commit() -> str:
+    """The source tree's git commit (``+dirty`` with uncommitted changes), or ``unknown``
+    outside a git checkout (an installed wheel)."""
+    root = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+    try:
+        head = subprocess.run(
+            ["git", "-C", root, "rev-parse", "HEAD"], capture_output=True, text=True, timeout=10
+        )
+        if head.returncode != 0:
+            return "unknown"
+        dirty = subprocess.run(
+            ["git", "-C", root, "status", "--porcelain", "--untracked-files=no"],
+            capture_output=True,
+            text=True,
+            timeout=30,
+        )
+        return head.stdout.strip() + ("+dirty" if dirty.stdout.strip() else "")
+    except (OSError, subprocess.SubprocessError):
+        return "unknown"
+
+
+def run_provenance(command: list[str]) -> dict[str, object]:
+    """:func:`provenance` plus the ``command`` that made the result and the ``commit``."""
+    return {**provenance(), "command": " ".join(command), "commit": commit()}

@@ -13,6 +13,7 @@ from __future__ import annotations
 import argparse
 import json
 import math
+import numbers
 import re
 from dataclasses import dataclass
 from pathlib import Path
@@ -62,6 +63,7 @@ class Range:
 
     def problem(self, value: Any) -> str | None:
         """None if ``value`` is allowed, else what is wrong with it."""
+        value = plain_number(value)
         if isinstance(value, bool) or not isinstance(value, int | float):
             return f"must be {self.describe()}, got {value!r}"
         if not math.isfinite(value):
@@ -74,6 +76,19 @@ class Range:
         if lo_bad or hi_bad:
             return f"must be {self.describe()}, got {value!r}" + (f" ({why})" if why else "")
         return None
+
+
+def plain_number(value: Any) -> Any:
+    """A NumPy (or other ``numbers``) integer or real scalar as Python's ``int`` or ``float``
+    (``np.int64(4)`` is an integer, decided 2026-12-04); booleans (``True``, ``np.True_``)
+    and everything else unchanged, so they are refused as before."""
+    if isinstance(value, bool | int | float) or type(value).__name__ in ("bool", "bool_"):
+        return value
+    if isinstance(value, numbers.Integral):
+        return int(value)
+    if isinstance(value, numbers.Real):
+        return float(value)
+    return value
 
 
 def _num(x: float | None) -> str:
@@ -148,6 +163,12 @@ ENV_RANGES: dict[str, Range] = {
         "reward_config.stiffness_scale_N_m": Range(0.0, 1e6, lo_open=True),
         "reward_config.rot_stiffness_scale_Nm_rad": Range(0.0, 1e6, lo_open=True),
         "reward_config.fz_scale_N": Range(0.0, 10_000.0, lo_open=True),
+        # the outcome reward (envs/reward.py): its discount, step cost, contact weight and
+        # progress potential; the ordering of outcomes is checked on top (config.py)
+        "reward_config.discount": Range(0.0, 1.0, lo_open=True, hi_open=True),
+        "reward_config.time_cost": Range(0.0, 1000.0, lo_open=True),
+        "reward_config.w_contact": Range(0.0, 1000.0),
+        "reward_config.w_progress": Range(0.0, 1e6),
         # episode ends: margins and thresholds > 0 (at 0 every step would end the episode)
         "success_margin_mm": Range(0.0, MAX_PART_MM, lo_open=True),
         "jam_force_N": Range(0.0, 10_000.0, lo_open=True),

@@ -65,8 +65,10 @@ def test_train_of_key_is_pure_and_vmaps_over_seeds(seeds_run):
     """``jax.vmap(train)`` traces as one function of the keys (no compile here: the driver's
     pieces below run the same ``train.call``): a carry like the driver's and one history
     row per call and seed."""
+    from peghole_mjx.training.functional import SEED_AXIS
+
     run, _ = seeds_run
-    out = jax.eval_shape(jax.vmap(run.train), run.keys)
+    out = jax.eval_shape(jax.vmap(run.train, axis_name=SEED_AXIS), run.keys)
     t = run.train
     assert out.history["loss/critic"].shape == (2, t.prefill_calls + t.learn_calls)
     want = jax.eval_shape(run._init, run.keys)
@@ -190,3 +192,43 @@ def test_cli_resume_of_a_seeds_run_takes_its_own_config(seeds_run, capsys):
     rc = main(["train", "--resume", str(run.out), "--set", "num_envs=8"])
     err = capsys.readouterr().err.strip()
     assert rc == 2 and "--resume takes the run's own config" in err
+
+
+def test_vmapped_learner_resets_only_on_steps_where_a_world_finished(seeds_run):
+    """Two seeds vmapped in one call: a call of 5 env steps in which no world can finish
+    (episode_length 25) makes no reset call on the host; the call that reaches the time limit
+    makes at least one and at most one per step. Without the seeds' named axis the reset's
+    ``lax.cond`` becomes a select and resets every world at every step (5 calls here)."""
+    run, _ = seeds_run
+    timing = run.env.engine.timing
+    carry = run._init(run.keys)
+    n0 = timing["init_calls"]
+    carry, _ = run._call(carry, jnp.asarray(False))
+    assert timing["init_calls"] == n0
+    for _ in range(4):  # steps 6 to 25: every world reaches the time limit at step 25
+        carry, _ = run._call(carry, jnp.asarray(False))
+    assert 1 <= timing["init_calls"] - n0 <= 5
+
+
+def test_a_time_out_is_bootstrapped_under_the_outcome_reward(seeds_run):
+    """The replay rows of the time-limit step keep discount 1 (a truncation, bootstrapped from
+    the true next observation, which differs from the fresh reset's); rows that ended by a
+    terminal failure (cost <= -P) have discount 0; the truncation mask stays 0."""
+    from peghole_mjx.envs.reward import failure_cost
+
+    run, _ = seeds_run
+    assert run.cfg.env_overrides["reward_config.kind"] == "outcome"
+    carry = run._init(run.keys)
+    for _ in range(5):  # 25 steps x 4 worlds = 100 rows per seed, the time limit at step 25
+        carry, _ = run._call(carry, jnp.asarray(False))
+    buf = run.train.trainer.buffer
+    data = np.asarray(carry.buffer.data[0])  # seed 0's rows, in insertion order
+    rows = buf._unflatten_fn(jnp.asarray(data[:100]))  # Brax's own row layout (vmapped)
+    reward, discount = np.asarray(rows.reward), np.asarray(rows.discount)
+    terminal = reward <= -failure_cost(run.env.config.reward_config) * 0.99
+    np.testing.assert_array_equal(discount, np.where(terminal, 0.0, 1.0))
+    assert not terminal[-4:].all()  # the time-limit step's rows: at least one truncation
+    np.testing.assert_array_equal(np.asarray(rows.extras["state_extras"]["truncation"]), 0.0)
+    last = np.asarray(rows.next_observation)[-4:]
+    first = np.asarray(carry.env_state.obs[0])
+    assert np.abs(last - first).max() > 0  # the true next observation, not the reset's

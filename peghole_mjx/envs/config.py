@@ -23,7 +23,12 @@ import math
 from ml_collections import config_dict
 
 from peghole_mjx.control import GAINS, LIMITS
-from peghole_mjx.envs.reward import REWARD_WEIGHTS
+from peghole_mjx.envs.reward import (
+    OUTCOME_WEIGHTS,
+    REWARD_KINDS,
+    REWARD_WEIGHTS,
+    outcome_ordering_problem,
+)
 from peghole_mjx.errors import InfeasibleGeometryError, UserInputError
 from peghole_mjx.geometry.mjcf import SimOptions, contact_cap_entry, contact_cap_for
 from peghole_mjx.geometry.parts import resolve_representation
@@ -46,7 +51,7 @@ def base_config(preset: str) -> config_dict.ConfigDict:
         # the physics engine (envs/engines.py): "mjx" (MuJoCo MJX, CPU or GPU) or "mujoco"
         # (MuJoCo C through mujoco.batch on a CPU thread pool, envs/engine_mujoco.py)
         engine="mjx",
-        impl="jax",  # engine mjx: MJX's implementation, "jax" (CPU, GPU) or "warp" (CUDA GPU)
+        impl="jax",  # engine mjx: MJX's implementation, "jax" (CPU, GPU) or "warp" (CUDA, or CPU)
         mujoco_threads=0,  # engine mujoco: threads of its pool; 0 = every CPU of the process
         # collision representation of the parts (geometry/parts.py); None: the preset's default
         # (dual "capsule", GPU-scale; rect "edges", edge-capsule contacts); also dual "mesh"
@@ -107,6 +112,11 @@ def base_config(preset: str) -> config_dict.ConfigDict:
             null_damping_Nms_rad=GAINS.null_damping_Nms_rad,
         ),
         reward_config=config_dict.create(
+            # "thesis": eq (4.4) as the thesis wrote it (the env's own default and the
+            # reproduction studies'); "outcome": every extraction returns more than every
+            # failure, less force and time more (training's default, TRAINING_ENV_DEFAULTS;
+            # envs/reward.py says why and how)
+            kind="thesis",
             **REWARD_WEIGHTS,
             force_scale_N=LIMITS.max_force_N[0],  # |f_xy| is measured in units of this
             stiffness_scale_N_m=1000.0,  # ||k_xy|| is measured in N/mm
@@ -120,6 +130,9 @@ def base_config(preset: str) -> config_dict.ConfigDict:
             # quantity of R3 (eq 4.4 only penalises |f_xy|). 0 = the thesis's reward
             w_fz=0.0,
             fz_scale_N=1.0,
+            # the outcome reward's own settings (envs/reward.py OUTCOME_WEIGHTS); its contact
+            # cost reads |f| in units of force_scale_N above
+            **OUTCOME_WEIGHTS,
         ),
         success_margin_mm=5.0,  # success when the tip is this far above the mouth
         # jamming: the lateral contact force at the controller's threshold (20 N, E11; 90 %
@@ -402,7 +415,9 @@ FLAGS = frozenset(
 )
 #: entries that are text (``representation``: or None, the preset's default); their values are
 #: checked where they are read (the preset, geometry, engine, impl and representation names)
-TEXT = frozenset({"preset", "geometry", "engine", "impl", "representation", "task"})
+TEXT = frozenset(
+    {"preset", "geometry", "engine", "impl", "representation", "task", "reward_config.kind"}
+)
 #: entries that are None for "the default" (else a number in range)
 OPTIONAL = frozenset({"contact_cap", "representation"})
 #: entries that hold several numbers (each within the entry's range): how many
@@ -481,6 +496,14 @@ def check_config_values(config: config_dict.ConfigDict) -> None:
     for key in RANDOM_RANGES:
         lo, hi = r[key]
         need(lo <= hi, f"randomization.{key} must be a range (lo, hi), lo <= hi, got {r[key]!r}")
+    kind = config.reward_config.kind
+    need(
+        kind in REWARD_KINDS,
+        f"reward_config.kind must be one of {', '.join(REWARD_KINDS)}, got {kind!r}",
+    )
+    if kind == "outcome":
+        problem = outcome_ordering_problem(config.reward_config, config.episode_length)
+        need(problem is None, str(problem))
     lo, hi = config.stuck.breakaway_N
     need(lo <= hi, f"stuck.breakaway_N must be a range (lo, hi), lo <= hi, got {(lo, hi)!r}")
     spec = env_spec(config)

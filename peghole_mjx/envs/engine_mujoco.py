@@ -169,8 +169,9 @@ class MujocoEngine:
         self._pools: dict[int, _Pool] = {}
         self._lock = threading.Lock()
         #: host seconds spent in the substep callbacks and, within them, in ``Batch.step``
-        #: (the physics alone); read by benchmarks/perf/throughput.py
-        self.timing = {"callback_s": 0.0, "batch_step_s": 0.0, "calls": 0}
+        #: (the physics alone), read by benchmarks/perf/throughput.py; the number of substep
+        #: calls and of reset calls (``init_calls``: the learner resets only where needed)
+        self.timing = {"callback_s": 0.0, "batch_step_s": 0.0, "calls": 0, "init_calls": 0}
         #: opt-in torque record: set it to a list and every physics substep appends a copy of
         #: the worlds' ``ctrl`` as applied, ``(n, nu)`` with the call's worlds flattened in
         #: order (benchmarks/perf/engines.py replays them open loop in ``mujoco.rollout``,
@@ -292,6 +293,7 @@ class MujocoEngine:
         q_arm = np.asarray(q_arm, float).reshape(-1, q_arm.shape[-1])
         n = q_arm.shape[0]
         with self._lock:
+            self.timing["init_calls"] += 1
             p = self._pool(n)
             p.batch.reset(stage=mujoco.mjtStage.mjSTAGE_NONE)
             p.qpos[:] = self._q_default

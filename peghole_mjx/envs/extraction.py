@@ -65,7 +65,7 @@ from peghole_mjx.envs.randomization import (
     randomization_fn,
     tool_error_on,
 )
-from peghole_mjx.envs.reward import reward_terms
+from peghole_mjx.envs.reward import outcome_terms, reward_terms
 from peghole_mjx.geometry.mjcf import TOOL_DOWN_MAT
 from peghole_mjx.geometry.specs import MM
 
@@ -241,7 +241,8 @@ class PegHoleEnv(PegHoleBase):
 
     [1] ``limits.max_force_N``, the lateral total also within ``action.max_ff_xy_N``.
 
-    Reward (eq 4.4, Table 4.1), named terms logged as ``metrics["reward/<term>"]``:
+    Reward: ``reward_config.kind`` (:mod:`peghole_mjx.envs.reward`), named terms logged as
+    ``metrics["reward/<term>"]``. ``thesis``, eq (4.4) with the Table 4.1 weights:
 
     | term | value |
     |---|---|
@@ -251,6 +252,11 @@ class PegHoleEnv(PegHoleBase):
     | rot_stiffness | ``-w_stf_rot K_theta / (300 N m/rad)``: not in eq 4.4, 0 by default |
     | extraction_force | ``-w_fz |f_z| / 1 N``: not in eq 4.4, 0 by default |
     | end | ``+1`` on success, ``-1`` on failure (jamming, NaN, time limit) |
+
+    ``outcome`` (training's default): ``time`` ``-time_cost`` per step; ``force``
+    ``-time_cost w_contact min(|f| / 20 N, 1)``; ``progress`` the potential-based shaping
+    ``gamma Phi(s') - Phi(s)``; ``end`` ``-time_cost (1 + w_contact) / (1 - gamma)`` on a
+    terminal failure (jamming, NaN, overflow). A time-out alone sets ``info["truncation"]``.
 
     Episode starts are drawn by :attr:`randomization_fn`
     (:func:`peghole_mjx.envs.randomization.randomization_fn`; a task variant may replace it).
@@ -369,6 +375,9 @@ class PegHoleEnv(PegHoleBase):
             "sum_fxy": jnp.zeros(()),
             "peak_fz": jnp.zeros(()),
             "nan": jnp.zeros(()),
+            # 1 when the episode ended by its time limit alone under the outcome reward (a
+            # truncation the learner bootstraps, Brax's convention); 0 under the thesis's
+            "truncation": jnp.zeros(()),
             # the F/T sensor is zeroed at the start (no contact there; the arm is not yet
             # under control, so the raw reading would hold its free-fall transient)
             "wrench": jnp.zeros(6),
@@ -472,6 +481,30 @@ class PegHoleEnv(PegHoleBase):
             peak_fz = jnp.max(jnp.abs(jnp.where(jnp.isfinite(wrenches[:, 2]), wrenches[:, 2], 0.0)))
         return data, wrench, peak_fz
 
+    def _reward(self, info, depth, f, k_xy, k_rot, success, failure, terminal_failure):
+        """``(terms, truncation)`` of a step under ``reward_config.kind`` (envs/reward.py):
+        the thesis's eq (4.4), where a time-out is a terminal failure (truncation 0), or the
+        outcome reward, where a time-out alone is a truncation and not an outcome.
+        ``terminal_failure``: jamming, NaN or contact overflow (not the time limit)."""
+        c = self._config
+        rc = c.reward_config
+        if rc.kind == "thesis":
+            fxy, fz = jnp.linalg.norm(f[:2]), jnp.abs(f[2])
+            dz = depth - info["depth_mm"]
+            terms = reward_terms(dz, fxy, k_xy, success, failure, rc, k_rot, fz)
+            return terms, jnp.zeros(())
+        margin = c.success_margin_mm
+        terms = outcome_terms(
+            info["depth_mm"] + margin,
+            depth + margin,
+            self._depth0_mm + margin,
+            jnp.linalg.norm(f),
+            success,
+            terminal_failure,
+            rc,
+        )
+        return terms, failure * (1.0 - terminal_failure)
+
     def step(self, state: State, action: jax.Array) -> State:
         c = self._config
         rc = c.randomization
@@ -511,14 +544,17 @@ class PegHoleEnv(PegHoleBase):
         fxy = jnp.linalg.norm(f[:2])
         fz = jnp.abs(f[2])
         depth = self._depth_mm(r, info["hole_pos"], info["hole_mat"])
-        dz = depth - info["depth_mm"]
         step = info["step"] + 1
         jam_time, jammed, success, failure, done = termination(
             fxy, depth, info["jam_time"], step, nan, overflow, c
         )
 
-        terms = reward_terms(dz, fxy, k_xy, success, failure, c.reward_config, k_rot, fz)
-        terms["progress"] = jnp.where(finite, terms["progress"], 0.0)
+        terminal_failure = jnp.maximum(jnp.maximum(jammed, nan), overflow) * (1.0 - success)
+        terms, truncation = self._reward(
+            info, depth, f, k_xy, k_rot, success, failure, terminal_failure
+        )
+        if c.reward_config.kind == "thesis":  # a NaN step's depth change is not progress
+            terms["progress"] = jnp.where(finite, terms["progress"], 0.0)
         reward = sum(terms.values())
 
         sum_fz = info["sum_fz"] + fz
@@ -540,6 +576,7 @@ class PegHoleEnv(PegHoleBase):
             sum_fxy=sum_fxy,
             peak_fz=peak_fz,
             nan=nan,
+            truncation=truncation,
             wrench=wrench,
         )
         metrics = {f"reward/{k}": v for k, v in terms.items()}

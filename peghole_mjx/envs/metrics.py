@@ -20,8 +20,18 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-#: the named reward terms (:func:`peghole_mjx.envs.reward.reward_terms`), logged as reward/<term>
-REWARD_TERMS = ("progress", "force", "stiffness", "rot_stiffness", "extraction_force", "end")
+#: the named reward terms of both reward kinds (:func:`peghole_mjx.envs.reward.reward_terms`,
+#: :func:`~peghole_mjx.envs.reward.outcome_terms`; a term a kind lacks is 0), logged as
+#: reward/<term>
+REWARD_TERMS = (
+    "progress",
+    "force",
+    "stiffness",
+    "rot_stiffness",
+    "extraction_force",
+    "end",
+    "time",
+)
 #: how an episode ended and its force statistics (their values at the step where done = 1)
 EPISODE_METRICS = (
     "success",  # 1 when the tip is success_margin_mm above the mouth

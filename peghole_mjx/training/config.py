@@ -16,8 +16,12 @@ Keys, and the choices made where Brax's defaults differ from the thesis (stack_n
   ``min_replay_size``: rows collected by the initial policy before learning.
 * ``learning_rate``: Adam, actor and critics: 3e-4 (SB3's default, which the thesis used;
   Brax's default is 1e-4).
-* ``discounting``: gamma = 0.99 as in the thesis. Brax's default 0.9 would shorten the
-  horizon to about 10 steps (0.2 s), far shorter than an extraction.
+* ``discounting``: gamma. Under the outcome reward (training's default) its own discount,
+  ``env.reward_config.discount`` = 0.999 (:func:`load_train_config` takes it from there; any
+  other value is refused: the reward's ordering of outcomes holds at that discount,
+  :mod:`peghole_mjx.envs.reward`); under the thesis's reward 0.99 as in the thesis. Brax's
+  default 0.9 would shorten the horizon to about 10 steps (0.2 s), far shorter than an
+  extraction.
 * ``tau``: target-critic Polyak rate 0.005; ``reward_scaling``: 1 (the eq 4.4 terms are
   already of order one).
 * ``alpha``: entropy temperature, ``"auto"`` (learned with Brax's target entropy -dim(A)/2)
@@ -33,10 +37,10 @@ Keys, and the choices made where Brax's defaults differ from the thesis (stack_n
   the action also sets k_xy and K_theta, docs/guide/training.md), while the env config's own default
   (off) applies to envs built outside training. ``peghole train --compliance-strategy on|off``
   and :func:`load_train_config`'s ``compliance_strategy`` are shorthands for
-  ``env.compliance_strategy``. Decided 2026-12-02: until then ``TrainConfig`` also had a
-  ``compliance_strategy`` field, reconciled with the env override in three places; a
-  ``run.json`` or ``policy.json`` that still carries it is read as the env override
-  (:func:`legacy_config`, the one place).
+  ``env.compliance_strategy``. A ``run.json`` or ``policy.json`` that carries a
+  ``compliance_strategy`` training key (an older record) is read as the env override
+  (:func:`legacy_config`, the one place; the decision and its date:
+  docs/research/train_profiles.md).
 """
 
 from __future__ import annotations
@@ -55,8 +59,13 @@ _REPO_CONFIGS = Path(__file__).resolve().parents[2] / "train" / "configs"
 CONFIG_DIR = _PKG_CONFIGS if _PKG_CONFIGS.is_dir() else _REPO_CONFIGS
 PROFILES = ("full", "cpu", "quick")
 #: env config entries that training sets unless a run says otherwise (the env config's own
-#: defaults apply to envs built outside training): the compliance strategy on, RL + CS
-TRAINING_ENV_DEFAULTS: dict[str, Any] = {"compliance_strategy": True}
+#: defaults apply to envs built outside training): the compliance strategy on, RL + CS, and
+#: the outcome reward, whose optimum is a clean extraction (envs/reward.py; the thesis's
+#: eq (4.4) is ``reward_config.kind=thesis``, kept by the reproduction studies)
+TRAINING_ENV_DEFAULTS: dict[str, Any] = {
+    "compliance_strategy": True,
+    "reward_config.kind": "outcome",
+}
 
 
 @dataclass
@@ -262,9 +271,28 @@ def load_train_config(
                 "disagree: set one of them"
             )
     d.update(env=env, env_overrides={**env_over, **given}, profile=profile)
+    # the outcome reward's own discount (one source: its env config entry)
+    gamma = reward_discount(env, d["env_overrides"])
+    d.setdefault("discounting", gamma)
+    if env_setting(env, d["env_overrides"], "reward_config.kind") == "outcome":
+        if not isinstance(d["discounting"], int | float) or d["discounting"] != gamma:
+            raise UserInputError(
+                f"discounting={d['discounting']!r} differs from the outcome reward's discount "
+                f"{gamma:g}: set env.reward_config.discount instead (the reward's ordering of "
+                "outcomes is checked at its own discount)"
+            )
     if isinstance(d.get("hidden_layer_sizes"), tuple):
         d["hidden_layer_sizes"] = list(d["hidden_layer_sizes"])
     return TrainConfig.from_dict(d)
+
+
+def reward_discount(env: str, env_overrides: dict[str, Any]) -> float:
+    """The learner's discount for ``env`` with ``env_overrides``: the outcome reward's own
+    (``reward_config.discount``: its shaping and ordering hold there), else the
+    :class:`TrainConfig` default (0.99, the thesis's)."""
+    if env_setting(env, env_overrides, "reward_config.kind") == "outcome":
+        return float(env_setting(env, env_overrides, "reward_config.discount"))
+    return float(default("discounting"))
 
 
 def default(name: str) -> Any:

@@ -2,11 +2,13 @@
 
 ``jax.jit(train)(key)`` runs a whole SAC run (learner init, replay prefill, learning) in one
 compiled call and returns a :class:`TrainOutput`: the final carry and the per-call training
-statistics. ``jax.jit(jax.vmap(train))(keys)`` trains one run per key in the same call (several
-seeds; their worlds and learners never mix). The pieces are those of
-:class:`peghole_mjx.training.sac.SACTrainer` (Brax's losses, networks, replay buffer), on one
-device: SAC's device averages (``pmean``/``psum`` over the axis ``"i"``) run on a one-wide
-``vmap`` axis of that name, where they are identities.
+statistics. Several seeds in one call: ``train = make_train(env, cfg, seed_axis=SEED_AXIS)``
+and ``jax.jit(jax.vmap(train, axis_name=SEED_AXIS))(keys)`` train one run per key (their
+worlds and learners never mix); the named axis keeps the learner's reset a true ``lax.cond``
+that runs only on steps where some world finished (:mod:`peghole_mjx.training.sac`).
+The pieces are those of :class:`peghole_mjx.training.sac.SACTrainer` (Brax's losses,
+networks, replay buffer), on one device: SAC's device averages (``pmean``/``psum`` over the
+axis ``"i"``) run on a one-wide ``vmap`` axis of that name, where they are identities.
 
 ``train.init(key)`` and ``train.call(carry, learn)`` (one call of ``steps_per_call`` env
 steps, learning or only filling the replay) are its pieces, for a driver that checkpoints
@@ -27,6 +29,9 @@ import jax.numpy as jnp
 from peghole_mjx.envs.extraction import PegHoleEnv
 from peghole_mjx.training.config import TrainConfig
 from peghole_mjx.training.sac import AXIS, Carry, SACTrainer
+
+#: the name of the ``vmap`` axis over seeds (``peghole train --seeds N``)
+SEED_AXIS = "seeds"
 
 
 @flax.struct.dataclass
@@ -52,9 +57,9 @@ def _one_wide(fn):
 class Train:
     """``train(key) -> TrainOutput``: a pure, jittable, vmappable SAC run (see the module)."""
 
-    def __init__(self, env: PegHoleEnv, cfg: TrainConfig):
-        self.env, self.cfg = env, cfg
-        self.trainer = SACTrainer(env, cfg, single_device=True)
+    def __init__(self, env: PegHoleEnv, cfg: TrainConfig, seed_axis: str | None = None):
+        self.env, self.cfg, self.seed_axis = env, cfg, seed_axis
+        self.trainer = SACTrainer(env, cfg, single_device=True, seed_axis=seed_axis)
         self.steps_per_call = cfg.num_envs * cfg.steps_per_call
         self.prefill_calls = -(-cfg.min_replay_size // self.steps_per_call)
         rest = cfg.num_timesteps - self.prefill_calls * self.steps_per_call
@@ -95,6 +100,8 @@ class Train:
         return carry.ts.normalizer, carry.ts.policy_params
 
 
-def make_train(env: PegHoleEnv, cfg: TrainConfig) -> Train:
-    """``train(key)``: the whole SAC run of ``cfg`` on ``env`` as one pure function."""
-    return Train(env, cfg)
+def make_train(env: PegHoleEnv, cfg: TrainConfig, seed_axis: str | None = None) -> Train:
+    """``train(key)``: the whole SAC run of ``cfg`` on ``env`` as one pure function;
+    ``seed_axis``: the ``axis_name`` of the ``vmap`` over seeds it will run under (None: not
+    vmapped over seeds)."""
+    return Train(env, cfg, seed_axis)

@@ -26,8 +26,20 @@ Like Brax, the step is ``pmap``-ed over all local devices, and on several proces
 normaliser statistics are averaged across all devices with ``pmean``/``psum``, so every
 process holds the same learner (tested with two CPU processes: tests/test_distributed.py).
 
-Time limits. An episode that reaches ``episode_length`` is a failure with reward -1 (the
-thesis's rule) and a terminal transition, so ``truncation`` is always 0.
+Time limits. Under the thesis's reward an episode that reaches ``episode_length`` is a failure
+with reward -1 (the thesis's rule) and a terminal transition. Under the ``outcome`` reward
+(training's default, :mod:`peghole_mjx.envs.reward`) a time-out alone is a truncation
+(``State.info["truncation"]``): the transition keeps its discount and the critic bootstraps it
+from the true next observation, which the replay stores before the world's reset. Brax's own
+loss instead drops truncated transitions (``1 - truncation`` mask), because its auto-reset
+wrapper has already replaced their next observation; here that mask stays 0.
+
+Resets only where needed. A finished world restarts from a fresh reset; the reset (an IK
+solve, and on the ``mujoco`` engine a host call) runs only on steps where some world finished,
+through a ``lax.cond`` whose predicate is one flag for the whole call. Under ``vmap`` (the pure
+learner's one-wide axis, and the seeds' named axis ``seed_axis`` of ``peghole train --seeds``)
+the predicate is reduced over the named axes, so it stays one flag and the cond is not turned
+into a select that would run both branches at every step (tested).
 """
 
 from __future__ import annotations
@@ -97,11 +109,23 @@ _BARRIERS = itertools.count()
 class SACTrainer:
     """Jitted (pmapped) pieces of a SAC run: ``init``, ``prefill``, ``train_call``."""
 
-    def __init__(self, env: PegHoleEnv, cfg: TrainConfig, single_device: bool = False):
+    def __init__(
+        self,
+        env: PegHoleEnv,
+        cfg: TrainConfig,
+        single_device: bool = False,
+        seed_axis: str | None = None,
+    ):
         """``single_device``: one learner on one device, whatever the device count (the
         pure :func:`peghole_mjx.training.functional.make_train`; ``init``/``train_call``
-        are then not for use)."""
-        self.env, self.cfg = env, cfg
+        are then not for use). ``seed_axis``: the name of a ``vmap`` axis over seeds that
+        the pieces run under (the reset predicate is reduced over it)."""
+        check_discount(env, cfg)
+        self.env, self.cfg, self.seed_axis = env, cfg, seed_axis
+        # the vmapped axes the acting step runs under (none under pmap: there each device's
+        # flag is its own): the one-wide axis of the pure learner and the seeds' axis
+        axes = (AXIS,) if single_device else ()
+        self._vmap_axes = axes + ((seed_axis,) if seed_axis else ())
         # the pmap's width in this process, and every process's devices
         self.n_dev = 1 if single_device else jax.local_device_count()
         n_all = 1 if single_device else jax.device_count()
@@ -218,7 +242,10 @@ class SACTrainer:
 
             return jax.tree.map(pick, fresh, nxt)
 
-        return nxt, jax.lax.cond(jnp.any(done), with_resets, lambda _: nxt, None)
+        any_done = jnp.any(done)
+        if self._vmap_axes:  # one flag for the call's vmapped axes: a true cond
+            any_done = jax.lax.pmax(any_done.astype(jnp.int32), self._vmap_axes) > 0
+        return nxt, jax.lax.cond(any_done, with_resets, lambda _: nxt, None)
 
     def _actor_step(self, ts: TrainingState, carry: Carry, key, deterministic=False):
         """Act in every world, store the transitions, track finished episodes."""
@@ -234,7 +261,8 @@ class SACTrainer:
             observation=es.obs,
             action=actions,
             reward=nxt.reward,
-            discount=1.0 - nxt.done,
+            # a truncated step (time-out under the outcome reward) is bootstrapped
+            discount=1.0 - nxt.done + nxt.info["truncation"],
             next_observation=nxt.obs,
             extras={
                 "state_extras": {"truncation": jnp.zeros_like(nxt.done)},
@@ -353,6 +381,17 @@ class SACTrainer:
         """(normaliser, policy params) of device 0, on the host."""
         ts = jax.tree.map(lambda x: x[0], carry.ts)
         return jax.device_get((ts.normalizer, ts.policy_params))
+
+
+def check_discount(env: PegHoleEnv, cfg: TrainConfig) -> None:
+    """Refuse a learner discount other than the outcome reward's own (its shaping and its
+    ordering of outcomes hold at that discount only: :mod:`peghole_mjx.envs.reward`)."""
+    rc = env.config.reward_config
+    if rc.kind == "outcome" and abs(cfg.discounting - rc.discount) > 1e-12:
+        raise UserInputError(
+            f"training config discounting {cfg.discounting:g} differs from the outcome "
+            f"reward's discount {rc.discount:g} (env.reward_config.discount): set one of them"
+        )
 
 
 def _split_carry_key(c: Carry):

@@ -42,7 +42,7 @@ from peghole_mjx.errors import CorruptFileError, UserInputError
 from peghole_mjx.provenance import provenance
 from peghole_mjx.training import checkpoints
 from peghole_mjx.training.config import TrainConfig, env_setting, read_run_record
-from peghole_mjx.training.functional import make_train
+from peghole_mjx.training.functional import SEED_AXIS, make_train
 from peghole_mjx.training.plots import plot_seed_bands, t_interval
 from peghole_mjx.training.run import EVAL_SEED_OFFSET, Run, check_resources, policy_meta
 from peghole_mjx.validation import dumps
@@ -66,7 +66,7 @@ class SeedsRun(Run):
             raise UserInputError(f"--seeds must be a whole number >= 1, got {seeds!r}")
         self.cfg, self.seeds, self.out, self.progress = cfg, seeds, Path(out), progress
         self.env = envs.load(cfg.env, config_overrides=cfg.env_overrides or None)
-        self.train = make_train(self.env, cfg)
+        self.train = make_train(self.env, cfg, seed_axis=SEED_AXIS)
         # before anything is allocated, compiled or written
         trainer = self.train.trainer
         need_disk = check_resources(self.env, cfg, trainer.obs_size, trainer.act_size, seeds)
@@ -75,7 +75,7 @@ class SeedsRun(Run):
         self.chunk_calls = max(1, cfg.eval_every // self.train.steps_per_call)
         self.ckpt_dir = self.out / "checkpoints"
         self._init = jax.jit(jax.vmap(self.train.init))
-        self._call = jax.jit(jax.vmap(self.train.call, in_axes=(0, None)))
+        self._call = jax.jit(jax.vmap(self.train.call, in_axes=(0, None), axis_name=SEED_AXIS))
 
     @classmethod
     def resume(cls, out: str | Path, progress: bool = True) -> SeedsRun:

@@ -1,0 +1,341 @@
+"""The learning benchmark: final policies over seeds, with intervals (one command, resumable).
+
+    python -m benchmarks.evals.learning --out benchmarks/results/evals/learning_cpu-2core
+
+For each task (default RectExtract, RectExtractHard, DualExtract, DualExtractHard) and each
+seed (default 100-104: fresh seeds, the tuning seeds are 0-4), one SAC run
+(:class:`peghole_mjx.training.run.TrainingRun`, ``--profile`` with ``--set`` changes; the
+training default reward and learner) that evaluates ``--eval-episodes`` episodes every
+``--eval-every`` env steps. Then its LAST policy (``final_policy``, never the best checkpoint)
+and the scripted baseline run the same ``--final-episodes`` fresh episodes (seed
+``--final-seed``, disjoint from the training evaluations' seeds).
+
+Per task, in ``learning.json`` (and one row per task in ``learning.csv``):
+
+* final success per seed; its interquartile mean (IQM: the mean of the middle half, rliable's
+  aggregate) with a 95 % bootstrap interval over seeds (2000 resamples, percentile; within a
+  task the stratified bootstrap of rliable is this one), the share of seeds at >= 95 %;
+* collapse: each seed's final success against its best evaluated success (``>= best - 0.05``
+  holds or not);
+* env steps and training clock (compile and prefill in, evaluations out) to the first
+  evaluation at >= 95 %: median and IQR over the seeds that reached it, and how many did;
+* mean and peak F_z of the final policy minus the baseline's on the same episodes, per seed,
+  with a 95 % Student-t interval over seeds;
+* the figure ``curves_<task>.png``: evaluation success against env steps, the seeds' mean and
+  95 % band.
+
+Every file carries device, versions, date, the command, the commit and each task's full
+training config (env overrides, reward kind and engine included). The runs live under
+``--out``/runs/TASK/seed_S; an interrupted benchmark started again with the same command
+resumes each unfinished run from its checkpoint and skips finished runs and evaluations; a
+rerun with other settings into the same folder is refused.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import sys
+from pathlib import Path
+from typing import Any
+
+import matplotlib.pyplot as plt
+import numpy as np
+from scipy import stats as sps
+from tqdm import tqdm
+
+from benchmarks.common import parse_overrides, write_rows
+from peghole_mjx import fileio
+from peghole_mjx.envs.engines import engine_overrides
+from peghole_mjx.errors import UserInputError
+from peghole_mjx.provenance import run_provenance
+from peghole_mjx.training.config import load_train_config
+from peghole_mjx.training.evaluate import evaluate
+from peghole_mjx.training.logs import read_metrics
+from peghole_mjx.training.run import TrainingRun
+from peghole_mjx.validation import dumps
+
+TASKS = ("RectExtract", "RectExtractHard", "DualExtract", "DualExtractHard")
+SEEDS = (100, 101, 102, 103, 104)
+#: the success rate that counts as solved (the issue's 95 %)
+TARGET = 0.95
+#: a final policy has collapsed when it is this far below its best evaluation
+COLLAPSE_MARGIN = 0.05
+BOOTSTRAP_RESAMPLES = 2000
+CSV_FIELDS = (
+    "task",
+    "seeds",
+    "final_success_iqm",
+    "final_success_ci95_lo",
+    "final_success_ci95_hi",
+    "share_at_95",
+    "seeds_collapsed",
+    "steps_to_95_median",
+    "clock_to_95_median_s",
+    "reached_95",
+    "mean_fz_minus_baseline_N",
+    "mean_fz_ci95_lo",
+    "mean_fz_ci95_hi",
+    "peak_fz_minus_baseline_N",
+    "engine",
+    "reward_kind",
+    "device",
+    "date",
+    "commit",
+)
+
+
+# ---------------------------------------------------------------------- statistics
+def iqm(x) -> float:
+    """The interquartile mean: the mean of the middle 50 % (25 % trimmed from each end)."""
+    return float(sps.trim_mean(np.asarray(x, float), 0.25))
+
+
+def bootstrap_ci(x, stat=iqm, n: int = BOOTSTRAP_RESAMPLES, seed: int = 0) -> list[float]:
+    """95 % percentile bootstrap interval of ``stat`` over the units of ``x`` (the seeds)."""
+    x = np.asarray(x, float)
+    rng = np.random.default_rng(seed)
+    draws = [stat(x[rng.integers(0, len(x), len(x))]) for _ in range(n)]
+    return [float(np.percentile(draws, 2.5)), float(np.percentile(draws, 97.5))]
+
+
+def t_ci(x) -> list[float] | None:
+    """95 % Student-t interval of the mean of ``x`` (None for fewer than two values)."""
+    x = np.asarray(x, float)
+    if len(x) < 2:
+        return None
+    half = sps.t.ppf(0.975, len(x) - 1) * x.std(ddof=1) / math.sqrt(len(x))
+    return [float(x.mean() - half), float(x.mean() + half)]
+
+
+def first_at(rows: list[dict], target: float = TARGET) -> dict | None:
+    """The first evaluation row of a ``metrics.csv`` at or above ``target`` success."""
+    for r in rows:
+        v = _f(r.get("eval/success_rate"))
+        if v is not None and v >= target:
+            return r
+    return None
+
+
+def _f(v) -> float | None:
+    try:
+        x = float(v)
+    except (TypeError, ValueError):
+        return None
+    return x if math.isfinite(x) else None
+
+
+def _median_iqr(vals: list[float]) -> dict[str, Any] | None:
+    if not vals:
+        return None
+    q1, med, q3 = np.percentile(vals, [25, 50, 75])
+    return {"median": float(med), "iqr": [float(q1), float(q3)]}
+
+
+def task_summary(task: str, per_seed: list[dict]) -> dict[str, Any]:
+    """The task's statistics over its seeds (module text) from the per-seed records."""
+    final = [s["final_success"] for s in per_seed]
+    collapsed = [
+        s["seed"] for s in per_seed if s["final_success"] < s["best_eval"] - COLLAPSE_MARGIN
+    ]
+    steps = [s["steps_to_95"] for s in per_seed if s["steps_to_95"] is not None]
+    clock = [s["clock_to_95_s"] for s in per_seed if s["clock_to_95_s"] is not None]
+    d_mean = [s["policy_mean_fz_N"] - s["baseline_mean_fz_N"] for s in per_seed]
+    d_peak = [s["policy_peak_fz_N"] - s["baseline_peak_fz_N"] for s in per_seed]
+    return {
+        "task": task,
+        "seeds": [s["seed"] for s in per_seed],
+        "final_success": final,
+        "final_success_iqm": iqm(final),
+        "final_success_ci95": bootstrap_ci(final),
+        "share_at_95": float(np.mean([v >= TARGET for v in final])),
+        "seeds_collapsed": collapsed,
+        "steps_to_95": _median_iqr(steps),
+        "clock_to_95_s": _median_iqr(clock),
+        "reached_95": len(steps),
+        "mean_fz_minus_baseline_N": float(np.mean(d_mean)),
+        "mean_fz_minus_baseline_ci95": t_ci(d_mean),
+        "peak_fz_minus_baseline_N": float(np.mean(d_peak)),
+        "peak_fz_minus_baseline_ci95": t_ci(d_peak),
+    }
+
+
+# ---------------------------------------------------------------------- runs
+def seed_record(run_dir: Path, final: dict[str, Any]) -> dict[str, Any]:
+    """One seed's record: its evaluations' curve, best and first >= 95 %, and its final
+    policy's evaluation against the baseline (``final``: :func:`evaluate`'s result)."""
+    rows = read_metrics(run_dir)
+    curve = [
+        (int(r["step"]), _f(r.get("eval/success_rate")))
+        for r in rows
+        if _f(r.get("eval/success_rate")) is not None
+    ]
+    hit = first_at(rows)
+    cfg = json.loads((run_dir / "run.json").read_text())["config"]
+    pol, base = final["policy"], final["baseline"]
+    return {
+        "seed": cfg["seed"],
+        "curve": curve,
+        "best_eval": max((v for _, v in curve), default=0.0),
+        "steps_to_95": int(hit["step"]) if hit else None,
+        "clock_to_95_s": _f(hit.get("train_wall_s")) if hit else None,
+        "final_success": float(pol["success_rate"]),
+        "policy_mean_fz_N": float(pol["mean_fz_N"]),
+        "policy_peak_fz_N": float(pol["peak_fz_N"]),
+        "baseline_success": float(base["success_rate"]),
+        "baseline_mean_fz_N": float(base["mean_fz_N"]),
+        "baseline_peak_fz_N": float(base["peak_fz_N"]),
+        "final_episodes": int(final["episodes"]),
+    }
+
+
+def train_config(task: str, seed: int, args):
+    """The run's training config: the profile, the evaluation schedule, the ``--set``s."""
+    over = {
+        **{f"env.{k}": v for k, v in engine_overrides(args.engine).items()},
+        "seed": seed,
+        "eval_every": args.eval_every,
+        "num_eval_envs": args.eval_episodes,
+        **parse_overrides(args.sets),
+    }
+    if args.num_timesteps is not None:
+        over["num_timesteps"] = args.num_timesteps
+    return load_train_config(task, args.profile, over)
+
+
+def run_seed(task: str, seed: int, args, out: Path) -> dict[str, Any]:
+    """Train (or resume, or skip when finished) one seed and evaluate its final policy."""
+    run_dir = out / "runs" / task / f"seed_{seed}"
+    cfg = train_config(task, seed, args)
+    if (run_dir / "run.json").exists():
+        recorded = json.loads((run_dir / "run.json").read_text())["config"]
+        if recorded != json.loads(dumps(cfg.as_dict())):
+            raise UserInputError(
+                f"{run_dir} holds a run of another config: rerun with the settings it was "
+                "started with, or another --out"
+            )
+        if not (run_dir / "summary.json").exists():
+            TrainingRun.resume(run_dir, render=False).run(resume=True)
+    else:
+        TrainingRun(cfg, run_dir, render=False).run()
+    final_file = run_dir / f"final_eval_{args.final_episodes}_seed{args.final_seed}.json"
+    if final_file.exists():
+        final = json.loads(final_file.read_text())
+    else:
+        final = evaluate(str(run_dir / "final_policy"), args.final_episodes, seed=args.final_seed)
+        fileio.write_text(final_file, dumps(final, indent=2) + "\n")
+    return {"config": cfg.as_dict(), **seed_record(run_dir, final)}
+
+
+def plot_task(task: str, per_seed: list[dict], path: Path) -> None:
+    """Evaluation success against env steps: the seeds' mean and 95 % band, each seed thin."""
+    fig, ax = plt.subplots(figsize=(6, 3.5))
+    steps = sorted({s for rec in per_seed for s, _ in rec["curve"]})
+    grid = np.full((len(per_seed), len(steps)), np.nan)
+    for i, rec in enumerate(per_seed):
+        d = dict(rec["curve"])
+        grid[i] = [d.get(s, np.nan) for s in steps]
+        ax.plot(steps, grid[i], color="0.7", lw=0.8)
+    mean = np.nanmean(grid, axis=0)
+    n = np.sum(np.isfinite(grid), axis=0)
+    sd = np.nanstd(grid, axis=0, ddof=1) if len(per_seed) > 1 else np.zeros_like(mean)
+    half = sps.t.ppf(0.975, np.maximum(n - 1, 1)) * sd / np.sqrt(np.maximum(n, 1))
+    ax.plot(steps, mean, color="C0", lw=2, label=f"mean of {len(per_seed)} seeds")
+    ax.fill_between(steps, mean - half, mean + half, color="C0", alpha=0.25, label="95 % band")
+    ax.axhline(TARGET, color="C3", ls="--", lw=1)
+    ax.set(xlabel="env steps", ylabel="evaluation success", ylim=(-0.02, 1.02), title=task)
+    ax.legend(loc="lower right", fontsize=8)
+    fig.tight_layout()
+    fig.savefig(path, dpi=120)
+    plt.close(fig)
+
+
+def main(argv: list[str] | None = None) -> int:
+    p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    p.add_argument("--out", required=True, type=Path, help="results folder (runs inside)")
+    p.add_argument("--tasks", nargs="+", default=list(TASKS))
+    p.add_argument("--seeds", nargs="+", type=int, default=list(SEEDS))
+    p.add_argument("--profile", default="cpu", help="training profile (default cpu)")
+    p.add_argument("--engine", default="auto", help="physics engine (default auto)")
+    p.add_argument("--num-timesteps", type=int, default=None, help="budget (default: profile's)")
+    p.add_argument("--eval-every", type=int, default=1600, help="env steps between evaluations")
+    p.add_argument("--eval-episodes", type=int, default=64, help="episodes per evaluation")
+    p.add_argument("--final-episodes", type=int, default=256, help="final policy's episodes")
+    p.add_argument("--final-seed", type=int, default=20_000, help="seed of the final episodes")
+    p.add_argument("--set", dest="sets", action="append", help="KEY=VALUE training override")
+    args = p.parse_args(argv)
+    command = ["python", "-m", "benchmarks.evals.learning", *(argv or sys.argv[1:])]
+    try:
+        return _run(args, command)
+    except UserInputError as exc:
+        print(f"learning: error: {exc}", file=sys.stderr)
+        return 2
+
+
+def _run(args, command: list[str]) -> int:
+    out = args.out
+    out.mkdir(parents=True, exist_ok=True)
+    units = [(t, s) for t in args.tasks for s in args.seeds]
+    results: dict[str, list[dict]] = {t: [] for t in args.tasks}
+    for task, seed in tqdm(units, desc="learning benchmark (task x seed)", file=sys.stderr):
+        results[task].append(run_seed(task, seed, args, out))
+    tasks = []
+    for task, per_seed in results.items():
+        summary = task_summary(task, per_seed)
+        cfg = per_seed[0]["config"]
+        over = cfg["env_overrides"]
+        summary |= {
+            "engine": over["engine"],
+            "reward_kind": over.get("reward_config.kind", "thesis"),
+            "config": {k: v for k, v in cfg.items() if k != "seed"},
+            "per_seed": per_seed,
+        }
+        plot_task(task, per_seed, out / f"curves_{task}.png")
+        tasks.append(summary)
+    prov = run_provenance(command)
+    doc = {
+        "benchmark": "learning",
+        "target_success": TARGET,
+        "collapse_margin": COLLAPSE_MARGIN,
+        "final_episodes": args.final_episodes,
+        "final_seed": args.final_seed,
+        "eval_every": args.eval_every,
+        "eval_episodes": args.eval_episodes,
+        "tasks": tasks,
+        **prov,
+    }
+    fileio.write_text(out / "learning.json", dumps(doc, indent=2) + "\n")
+    rows = []
+    for t in tasks:
+        ci, mci = t["final_success_ci95"], t["mean_fz_minus_baseline_ci95"] or [None, None]
+        rows.append(
+            {
+                "task": t["task"],
+                "seeds": " ".join(map(str, t["seeds"])),
+                "final_success_iqm": t["final_success_iqm"],
+                "final_success_ci95_lo": ci[0],
+                "final_success_ci95_hi": ci[1],
+                "share_at_95": t["share_at_95"],
+                "seeds_collapsed": " ".join(map(str, t["seeds_collapsed"])),
+                "steps_to_95_median": (t["steps_to_95"] or {}).get("median"),
+                "clock_to_95_median_s": (t["clock_to_95_s"] or {}).get("median"),
+                "reached_95": t["reached_95"],
+                "mean_fz_minus_baseline_N": t["mean_fz_minus_baseline_N"],
+                "mean_fz_ci95_lo": mci[0],
+                "mean_fz_ci95_hi": mci[1],
+                "peak_fz_minus_baseline_N": t["peak_fz_minus_baseline_N"],
+                "engine": t["engine"],
+                "reward_kind": t["reward_kind"],
+                "device": prov["device"],
+                "date": prov["date"],
+                "commit": prov["commit"],
+            }
+        )
+    write_rows(out / "learning.csv", rows, CSV_FIELDS)
+    print(f"wrote {out / 'learning.json'} and {out / 'learning.csv'}")
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
