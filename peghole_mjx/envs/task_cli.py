@@ -61,10 +61,12 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     tsub = p.add_subparsers(dest="task_cmd", metavar="SUBCOMMAND", required=True)
     m = tsub.add_parser(
         "make",
-        help="a task folder from your peg and hole meshes (CoACD)",
+        help="a task folder from your peg and hole meshes (exact pieces or CoACD)",
         description="PEG_MESH and HOLE_MESH: STL/OBJ/PLY, closed solids, in their assembled "
         "pose (peg fully inserted), +z = extraction. Checks the pair (peg in its hole, no "
-        "overlap, no undercut), decomposes both with CoACD, checks the pieces (start pose, "
+        "overlap, no undercut, a blind hole), cuts a part that is an extrusion along +z into "
+        "its exact convex pieces and decomposes any other with CoACD, checks the pieces (start "
+        "pose, "
         "clearance, an extraction sweep along +z, a drop test), measures the contacts in the "
         "MeshExtract env and writes the folder (all of it or nothing). Then: peghole train "
         "--env MeshExtract --set env.task=DIR.",
@@ -72,6 +74,14 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     m.add_argument("peg_mesh", type=Path)
     m.add_argument("hole_mesh", type=Path)
     m.add_argument("--units", default="mm", choices=["mm", "cm", "m"], help="mesh units")
+    m.add_argument(
+        "--pieces",
+        default="auto",
+        choices=["auto", "exact", "coacd"],
+        help="auto (default): the exact convex pieces of a part that is an extrusion along +z "
+        "(every face horizontal or vertical), CoACD for any other part; exact: refuse a part "
+        "that is not an extrusion; coacd: CoACD for both",
+    )
     add_coacd_arguments(
         m,
         vertex_default=tf.MAX_HULL_VERTICES,

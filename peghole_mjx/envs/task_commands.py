@@ -71,6 +71,7 @@ def cmd_make(args: argparse.Namespace) -> int:
         args.out,
         units=args.units,
         params=params,
+        pieces=args.pieces,
         **_shared(args, caps, run),
     )
     return _report(doc, args, args.out)

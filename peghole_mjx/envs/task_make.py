@@ -1,15 +1,18 @@
 """Making a task folder: meshes -> convex pieces -> checks -> contact cap -> folder.
 
-``peghole task make PEG HOLE`` (a user's meshes, decomposed by CoACD) and ``peghole task
-builtin NAME`` (the built-in parts of :mod:`peghole_mjx.geometry.shapes`, exact pieces) run
-one pipeline, :func:`build_task`:
+``peghole task make PEG HOLE`` (a user's meshes: a part that is an extrusion along +z cut
+into its exact convex pieces, :mod:`peghole_mjx.geometry.extrusion`, any other decomposed by
+CoACD) and ``peghole task builtin NAME`` (the built-in parts of
+:mod:`peghole_mjx.geometry.shapes`, exact pieces) run one pipeline, :func:`build_task`:
 
-1. the output folder checked (a new folder, or a task folder to replace) before any work;
+1. the output folder checked (a new folder, or a task folder to replace that holds only the
+   program's files: :func:`peghole_mjx.fileio.check_replaceable`) before any work;
 2. the meshes checked as a peg in its hole (:func:`~peghole_mjx.geometry.decompose.
-   check_assembly`: sizes, the peg inside the hole, no overlap, no undercut along +z) and
-   their radial clearance measured;
-3. the convex pieces (CoACD, or the built-in's exact ones) checked against the caps (pieces
-   per part, vertices per piece, contact pairs);
+   check_assembly`: sizes, two parts, the peg inside the hole, no overlap, no undercut along
+   +z; :func:`~peghole_mjx.geometry.task_check.check_blind_hole`: a bottom under the peg)
+   and their radial clearance measured;
+3. the convex pieces (exact for an extrusion or a built-in, else CoACD's) checked against
+   the caps (pieces per part, vertices per piece, contact pairs);
 4. the frames, start pose, clearance, extraction sweep, drop test and hull intrusion
    (:func:`~peghole_mjx.geometry.task_check.place_and_check`);
 5. the folder written to a temporary sibling, the MeshExtract env built from it on the
@@ -48,9 +51,10 @@ from peghole_mjx.geometry.decompose import (
     load_mesh,
     run_coacd,
 )
+from peghole_mjx.geometry.extrusion import exact_pieces
 from peghole_mjx.geometry.mjcf import build_scene
 from peghole_mjx.geometry.shapes import builtin_parts
-from peghole_mjx.geometry.task_check import TaskGeometry, place_and_check
+from peghole_mjx.geometry.task_check import TaskGeometry, check_blind_hole, place_and_check
 from peghole_mjx.provenance import provenance
 from peghole_mjx.validation import check, dumps
 
@@ -96,6 +100,11 @@ def _ancestor(path: Path) -> Path:
     return p
 
 
+#: the files of a task folder (a folder written before 2026-12-04 has no ownership manifest:
+#: these are the names a new task may replace in it)
+TASK_FOLDER_FILES = (*tf.FILES, tf.MANIFEST)
+
+
 def check_out_task_dir(out: str | Path, extra_bytes: int = 0) -> Path:
     """``out`` may receive a task folder: a new folder, an empty one or a task folder (which
     is replaced whole); its nearest existing folder writable with room. Nothing is created."""
@@ -107,6 +116,8 @@ def check_out_task_dir(out: str | Path, extra_bytes: int = 0) -> Path:
             raise UserInputError(
                 f"--out {out} holds other files: give a new folder (a task folder is replaced)"
             )
+        # a task folder is replaced only when every file in it is the program's (2026-12-04)
+        fileio.check_replaceable(out, TASK_FOLDER_FILES)
     base = _ancestor(out.parent)
     if not base.is_dir() or not os.access(base, os.W_OK | os.X_OK):
         raise UserInputError(f"--out {out}: {base} is not a writable folder")
@@ -125,10 +136,7 @@ def _temporary_sibling(out: Path):
         p = p.parent
     for q in reversed(created):
         q.mkdir()
-    tmp = out.absolute().parent / f".{out.name}.tmp-{os.getpid()}"
-    if tmp.exists():
-        shutil.rmtree(tmp)
-    tmp.mkdir()
+    tmp = fileio.temp_dir_beside(out)  # a unique new name: never a folder of the user's
     try:
         yield tmp
     except BaseException:
@@ -235,7 +243,7 @@ def _task_doc(
             },
             "drop_test": {"passed": True, "gap_mm": g.drop_gap_mm, "engine": "mujoco"},
             "hull_intrusion": {
-                "pieces": "exact" if exact else "CoACD",
+                "pieces": "exact" if exact else source.get("pieces", "CoACD"),
                 "peg_excess_mm": g.excess_peg_mm,
                 "hole_excess_mm": g.excess_hole_mm,
                 "warnings": g.warnings,
@@ -372,8 +380,43 @@ def build_task(
         for stale in (tf.SCENE, tf.TASK_FILE, tf.MANIFEST):
             (tmp / stale).unlink()
         write(tmp, final)
-        fileio.replace_dir(tmp, out)
+        fileio.replace_dir(tmp, out, known=TASK_FOLDER_FILES)
     return tf.read_task_json(out)
+
+
+#: ``--pieces`` of ``task make``: exact pieces where a part is an extrusion, else CoACD's
+PIECES = ("auto", "exact", "coacd")
+EXACT = "exact extrusion"
+COACD = "CoACD"
+
+
+def _part_pieces(
+    label: str, mesh, params: CoacdParams, pieces: str, progress: bool, max_hulls: int
+) -> tuple[list, dict[str, Any]]:
+    """One part's convex pieces and the record of how they were made (``task.json``'s
+    ``source.decomposition``)."""
+    if pieces != "coacd":
+        exact = exact_pieces(mesh)
+        if not isinstance(exact, str):
+            if len(exact.hulls) > max_hulls:
+                raise UserInputError(
+                    f"the {label} part is an extrusion whose exact convex pieces number "
+                    f"{len(exact.hulls)}, more than the cap of {max_hulls} (--max-hulls): a "
+                    "cavity of n edges needs n pieces; export round features with fewer "
+                    "facets, or use --pieces coacd"
+                )
+            return exact.hulls, exact.record
+        if pieces == "exact":
+            raise UserInputError(
+                f"--pieces exact: the {label} part is not an extrusion along +z ({exact}); "
+                "use --pieces auto (CoACD for it)"
+            )
+        why = f"not an extrusion along +z: {exact}"
+    else:
+        why = "--pieces coacd"
+    with prog.phase(f"decomposing the {label} part (CoACD)", enabled=progress):
+        hulls = run_coacd(mesh, params)
+    return hulls, {"method": COACD, "why": why, "pieces": len(hulls)}
 
 
 def make_task(
@@ -388,18 +431,28 @@ def make_task(
     caps: TaskCaps = TaskCaps(),
     contacts: ContactRun = ContactRun(),
     progress: bool = False,
+    pieces: str = "auto",
 ) -> dict[str, Any]:
     """``peghole task make``: a user's peg and hole meshes (assembled pose, +z extraction)
-    decomposed by CoACD, then :func:`build_task`."""
+    decomposed, then :func:`build_task`. ``pieces`` (:data:`PIECES`): ``auto`` takes the
+    exact pieces of a part that is an extrusion along +z
+    (:mod:`peghole_mjx.geometry.extrusion`) and CoACD's for any other part; ``exact``
+    refuses a part that is not an extrusion; ``coacd`` runs CoACD on both."""
     t0 = time.perf_counter()
     params = params or CoacdParams()
+    if pieces not in PIECES:
+        raise UserInputError(f"unknown --pieces {pieces!r}; choose one of {list(PIECES)}")
     check_out_task_dir(out)
     peg = load_mesh(peg_path, units)
     hole = load_mesh(hole_path, units)
     check_assembly(peg, hole, units)  # before the decomposition
-    with prog.phase("decomposing the parts (CoACD)", enabled=progress):
-        peg_hulls = run_coacd(peg, params)
-        hole_hulls = run_coacd(hole, params)
+    check_blind_hole(peg, hole)
+    hulls, records = {}, {}
+    for label, mesh in (("peg", peg), ("hole", hole)):
+        hulls[label], records[label] = _part_pieces(
+            label, mesh, params, pieces, progress, caps.max_hulls
+        )
+    methods = {r["method"] for r in records.values()}
     source = {
         "kind": "meshes",
         "peg_mesh": str(Path(peg_path).name),
@@ -407,18 +460,21 @@ def make_task(
         "peg_mesh_sha256": fileio.sha256_file(peg_path),
         "hole_mesh_sha256": fileio.sha256_file(hole_path),
         "units": units,
-        "pieces": "CoACD",
-        "coacd": asdict(params),
+        "pieces": " + ".join(sorted(methods)) if len(methods) > 1 else methods.pop(),
+        "decomposition": records,
     }
+    if any(r["method"] == COACD for r in records.values()):
+        source["coacd"] = asdict(params)
+    exact = all(r["method"] == EXACT for r in records.values())
     return build_task(
         peg,
         hole,
-        peg_hulls,
-        hole_hulls,
+        hulls["peg"],
+        hulls["hole"],
         out,
         name=Path(peg_path).stem,
         source=source,
-        exact=False,
+        exact=exact,
         friction=friction,
         peg_mass_kg=peg_mass_kg,
         caps=caps,
@@ -445,6 +501,7 @@ def make_builtin(
     check_out_task_dir(out)
     parts = builtin_parts(name, clearance_mm)
     check_assembly(parts.peg_mesh, parts.hole_mesh)
+    check_blind_hole(parts.peg_mesh, parts.hole_mesh)
     source = {
         "kind": "builtin",
         "builtin": name,

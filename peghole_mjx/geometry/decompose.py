@@ -254,7 +254,8 @@ def check_assembly(peg, hole, units: str = "mm") -> None:
     failed condition raises :class:`UserInputError` naming it, in this order:
 
     1. size: each part's largest extent lies in ``RANGES["cad_part_mm"]`` (wrong ``--units``
-       give a part a thousand times too small or large);
+       give a part a thousand times too small or large); the two parts are not one solid
+       (equal bounds and volume: the same file given twice);
     2. peg inside the hole: the peg reaches below the hole part's top, and every sampled point
        of the peg within the hole part's height is surrounded by the hole part (a horizontal
        ray in each of +x, -x, +y, -y meets it) - a peg beside the block, or the two files
@@ -278,6 +279,12 @@ def check_assembly(peg, hole, units: str = "mm") -> None:
                 f"({rng.why_lo if extent < rng.lo else rng.why_hi}); are the units right?"
             )
     tol = INTERFERENCE_TOL_MM * MM
+    same_bounds = np.allclose(peg.bounds, hole.bounds, rtol=0.0, atol=tol)
+    if same_bounds and abs(peg.volume - hole.volume) <= 1e-6 * abs(hole.volume):
+        raise UserInputError(
+            "not a peg-hole (two parts): the peg and the hole part are the same solid (equal "
+            "bounds and volume): give the peg's file, then the hole part's"
+        )
     top = float(hole.bounds[1, 2])
     if peg.bounds[0, 2] >= top - tol:
         raise UserInputError(

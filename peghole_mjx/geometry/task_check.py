@@ -87,6 +87,34 @@ def tip_point(peg_mesh, peg_hulls) -> np.ndarray:
     return np.array([xy[0], xy[1], z])
 
 
+def check_blind_hole(peg_mesh, hole_mesh) -> None:
+    """Refuse, before any decomposition, a pair with no hole bottom under the peg (meshes in
+    metres, assembled pose): a peg reaching below the hole part's lowest point (longer than
+    the hole is deep: it passes through), or nothing of the hole part straight under the
+    peg's tip point. A task needs a blind hole: its bottom sets the start pose and the drop
+    test (:func:`place_and_check`)."""
+    tol = 1e-6
+    below = float(hole_mesh.bounds[0, 2] - peg_mesh.bounds[0, 2])
+    if below >= -tol:
+        raise UserInputError(
+            f"not a task (blind hole): the peg reaches {max(below, 0.0) / MM:.4g} mm below the "
+            "hole part's lowest point (a peg longer than its hole is deep, through the part): "
+            "a task needs a blind hole, whose bottom sets the start pose"
+        )
+    down = np.flatnonzero(peg_mesh.face_normals[:, 2] < -0.9)
+    if not len(down):
+        raise UserInputError("the peg has no downward-facing end face (+z must be extraction)")
+    centres = peg_mesh.triangles_center[down]
+    low = centres[centres[:, 2] < centres[:, 2].min() + 1e-5]
+    hit = hole_mesh.ray.intersects_any(low, np.tile([0.0, 0.0, -1.0], (len(low), 1)))
+    if not hit.any():
+        x, y = low[0, :2] / MM
+        raise UserInputError(
+            f"not a task (blind hole): no hole part under the peg's tip at ({x:.3g}, {y:.3g}) "
+            "mm (a through hole): a task needs a blind hole, whose bottom sets the start pose"
+        )
+
+
 def _free_peg_model(peg_hulls, hole_hulls, friction: float, mass: float, sim: SimOptions):
     """The free peg (a ``freejoint`` at the origin, its pieces where they are) among the hole
     part's pieces (a static body), every peg piece x hole piece a contact pair."""
