@@ -344,3 +344,46 @@ def run_to_parts(
             rows[r["key"]] = r
             f.write(json.dumps(r) + "\n")
             f.flush()
+
+
+def flat_settings(settings: dict, prefix: str = "") -> dict[str, object]:
+    """A nested settings dict as ``{"a.b.c": value}`` (an empty dict is kept as a value)."""
+    out: dict[str, object] = {}
+    for key, value in settings.items():
+        name = f"{prefix}{key}"
+        if isinstance(value, dict) and value:
+            out.update(flat_settings(value, f"{name}."))
+        else:
+            out[name] = value
+    return out
+
+
+_UNSET = object()
+
+
+def settings_diff(a: dict, b: dict, ignore: Iterable[str] = ()) -> list[tuple[str, object, object]]:
+    """The settings that differ between two recorded configs: ``(dotted key, a's value, b's
+    value)`` in the order they first appear, a value one of them does not record as None.
+    Keys in ``ignore`` (dotted, or a prefix ending in ``.``) are left out."""
+    fa, fb = flat_settings(a), flat_settings(b)
+    skip = tuple(ignore)
+    out = []
+    for key in dict.fromkeys([*fa, *fb]):
+        if key in skip or any(s.endswith(".") and key.startswith(s) for s in skip):
+            continue
+        va, vb = fa.get(key, _UNSET), fb.get(key, _UNSET)
+        if va != vb:
+            out.append((key, None if va is _UNSET else va, None if vb is _UNSET else vb))
+    return out
+
+
+def fmt_settings_diff(diffs: list[tuple[str, object, object]], unset: str = "unset") -> str:
+    """``key a vs b; ...`` of :func:`settings_diff` (a value not recorded shown as ``unset``);
+    ``nothing`` when no setting differs."""
+    if not diffs:
+        return "nothing"
+
+    def fmt(v: object) -> str:
+        return unset if v is None else f"{v:g}" if isinstance(v, float) else str(v)
+
+    return "; ".join(f"{k} {fmt(a)} vs {fmt(b)}" for k, a, b in diffs)

@@ -143,17 +143,23 @@ def test_a_name_registered_by_two_functions_is_refused(registry):
 
 
 def test_results_brief_rows_read_committed_files(generated):
-    """At most 15 rows of five cells; every row's result files exist; the thesis's numbers in
-    the code's table are those the committed evaluation records (rect_extract)."""
+    """At most 15 rows of six cells; every row's verdict is one of the four (or says it is no
+    thesis claim) and links its research page; every row's result files exist; the thesis's
+    numbers in the code's table are those the committed evaluation records (rect_extract)."""
     lines = generated["results_brief"].splitlines()
-    assert lines[0] == "| claim | thesis | ours | interval | result file |"
+    assert lines[0] == "| claim | thesis | ours | interval | verdict | result file |"
     rows = lines[2:]
     assert 0 < len(rows) <= brief.MAX_ROWS
     for row in rows:
         cells = [c.strip() for c in row.strip("|").split(" | ")]
-        assert len(cells) == 5, row
+        assert len(cells) == 6, row
         assert "pending" not in cells[2], row
-        for target in (t.split(")")[0] for t in cells[4].split("](")[1:]):
+        if cells[4] != brief.NO_CLAIM:
+            text, page = cells[4].removeprefix("[").removesuffix(")").split("](")
+            assert (ROOT / page).exists(), page
+            for part in text.split("; "):
+                assert part.split(": ", 1)[-1].split(" (")[0] in brief.VERDICTS, row
+        for target in (t.split(")")[0] for t in cells[5].split("](")[1:]):
             assert (ROOT / target).exists(), target
     ev = json.loads((ROOT / "peghole_mjx/policies/rect_extract/evaluation.json").read_text())
     th = ev["thesis"]
@@ -162,3 +168,45 @@ def test_results_brief_rows_read_committed_files(generated):
     assert brief.THESIS["R5"][1] == (
         f"<= {th['peak_fz_N_policy']:g} N vs > {th['peak_fz_N_baseline']:g} N"
     )
+
+
+def test_settings_diff_names_every_setting_that_differs():
+    a = {"lr": 3e-4, "env_overrides": {"engine": "mjx", "x": 1}, "seed": 0}
+    b = {"lr": 1e-4, "env_overrides": {"engine": "mujoco"}, "seed": 0, "new": True}
+    diffs = common.settings_diff(a, b)
+    assert diffs == [
+        ("lr", 3e-4, 1e-4),
+        ("env_overrides.engine", "mjx", "mujoco"),
+        ("env_overrides.x", 1, None),
+        ("new", None, True),
+    ]
+    assert common.fmt_settings_diff(diffs) == (
+        "lr 0.0003 vs 0.0001; env_overrides.engine mjx vs mujoco; env_overrides.x 1 vs unset; "
+        "new unset vs True"
+    )
+    assert common.settings_diff(a, b, ignore=("env_overrides.", "new")) == [("lr", 3e-4, 1e-4)]
+    assert common.fmt_settings_diff(common.settings_diff(a, a)) == "nothing"
+
+
+def test_the_time_rows_name_what_our_two_training_runs_differ_in():
+    """Issue 52: 159 s (mjx) vs 104 s (mujoco) also changed the learning rate and the
+    evaluation interval; the row says so, from the two files' configs."""
+    res = common.BASELINES_RESULTS
+    a, b = (
+        json.loads((res / f"train_rect{e}_cpu-2core.json").read_text()) for e in ("", "_mujoco")
+    )
+    text = brief.engines_differ(a, b)
+    for part in (
+        "learning_rate 0.0003 vs 0.0001",
+        "eval_every 3200 vs 1600",
+        "engine mjx vs mujoco",
+    ):
+        assert part in text, text
+    assert "compliance_strategy" not in text  # recorded twice in the newer file, not a difference
+
+
+def test_a_study_of_two_collapsed_learners_is_not_a_readme_row():
+    path = common.EVALS_RESULTS / "rl_vs_rlcs_dual_hard_seeds_cpu-2core.json"
+    assert brief.collapsed(json.loads(path.read_text()))
+    assert path not in brief.latest_per_env()
+    assert brief.latest_per_env()  # the other envs' studies are rows

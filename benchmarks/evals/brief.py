@@ -2,9 +2,18 @@
 
 One row per claim: what the thesis states (:data:`THESIS`, each with the section that states
 it; the ids are those of ``shared/reference/seed_parameters.md``, "Headline results" and
-"Claims"), our committed number, its interval where the result file has one, and a link to
-that file. No number is written here by hand: every "ours" cell reads a committed result file,
-and a missing file shows as ``pending``.
+"Claims"), our committed number with the regime it holds in, its interval where the result file
+has one, a verdict (:data:`VERDICTS`) linked to the research page that argues it, and a link to
+the result file. No number is written here by hand: every "ours" cell reads a committed result
+file, and a missing file shows as ``pending``. A row that sets two of our results side by side
+names the settings that differ, diffed from the two files' recorded configs
+(:func:`benchmarks.common.settings_diff`) where the files record them.
+
+Decisions (2026-12-04, issue 52): every thesis-claim row carries one verdict of
+:data:`VERDICTS` (the argument, with its regime, is on the linked page and in
+``docs/research/index.md``, "Verdicts"); rows that are no thesis claim say so; a multi-seed
+RL vs RL + CS study whose arms both end below :data:`COLLAPSED` final success compares two
+collapsed learners and is not shown (it stays in ``docs/research/rl_vs_rlcs.md``, marked).
 
 Decisions (2026-12-02): R1 is read from the experiment itself at the slow pull (MJX float64,
 2 mm/s: ``quasi_static/``), whose closest cell the sweep names ``best_match_R1``; R2 from the
@@ -23,7 +32,15 @@ from pathlib import Path
 from benchmarks.baselines.seed_stack import result_path as seed_result_path
 from benchmarks.baselines.time_to_success import HARD_ENV, compare
 from benchmarks.baselines.time_to_success import result_path as ours_result_path
-from benchmarks.common import EVALS_RESULTS, ROOT, STUDIES_RESULTS, rel, table
+from benchmarks.common import (
+    EVALS_RESULTS,
+    ROOT,
+    STUDIES_RESULTS,
+    fmt_settings_diff,
+    rel,
+    settings_diff,
+    table,
+)
 from benchmarks.evals.experiments import ordered
 from benchmarks.evals.rl_vs_rlcs import fmt_interval
 from benchmarks.evals.rl_vs_rlcs import result_files as rl_vs_rlcs_files
@@ -31,14 +48,9 @@ from benchmarks.perf.throughput import ENGINES_CSV, engine_rate, engine_rows
 
 #: the thesis's side of each row: (claim, what the thesis states, where it states it)
 THESIS: dict[str, tuple[str, str, str]] = {
-    "R1_top": (
-        "R1: peak extraction force, L_C at the tip vs the top (rect)",
-        "77.1 % lower",
-        "Sec 3.5",
-    ),
-    "R1_centre": (
-        "R1: peak extraction force, L_C at the tip vs the centre (rect)",
-        "55.6 % lower",
+    "R1": (
+        "R1: peak force, L_C at the tip vs the top / the centre (rect)",
+        "77.1 / 55.6 % lower",
         "Sec 3.5",
     ),
     "R2": (
@@ -64,8 +76,8 @@ THESIS: dict[str, tuple[str, str, str]] = {
         "Figs 4.5-4.6",
     ),
     "throughput": (
-        "Env steps/s at 64 worlds, rect: engine mujoco vs MJX-JAX and one PyBullet process",
-        "not stated (PyBullet + SB3 SAC)",
+        "Env steps/s, rect: engine mujoco vs MJX-JAX and PyBullet",
+        "not stated",
         "Sec 4.2.5",
     ),
     "time": (
@@ -82,6 +94,23 @@ THESIS: dict[str, tuple[str, str, str]] = {
 
 POLICIES = ROOT / "peghole_mjx" / "policies"
 MAX_ROWS = 15
+#: the verdicts a thesis-claim row may carry
+VERDICTS = ("reproduced", "not reproduced", "reproduced in another regime", "not compared")
+#: the verdict cell of a row that is no thesis claim
+NO_CLAIM = "no thesis number"
+#: both arms' mean final success below this: two collapsed learners, not a comparison
+COLLAPSED = 0.05
+#: the research page that argues each row's verdict
+PAGES = {
+    "R1": "docs/research/compliance.md",
+    "R2": "docs/research/r2_dual.md",
+    "R3": "docs/research/results.md",
+    "rect_hard": "docs/research/rect_hard.md",
+    "R6": "docs/research/time_to_success.md",
+    "C4": "docs/research/rl_vs_rlcs.md",
+    "throughput": "docs/research/engines.md",
+    "time": "docs/research/time_to_success.md",
+}
 
 
 def _thesis(key: str) -> tuple[str, str]:
@@ -89,40 +118,100 @@ def _thesis(key: str) -> tuple[str, str]:
     return name, f"{thesis} ({where})" if where else thesis
 
 
-def _row(key: str, ours: str, interval: str, *paths: Path) -> str:
-    """One row: the thesis's side from :data:`THESIS`, ours, its interval, the files' links."""
+def verdict(page: str, *parts: str) -> str:
+    """A verdict cell: ``parts`` (each ``"X: VERDICT"`` or a bare verdict of
+    :data:`VERDICTS`) linked to the research page that argues them."""
+    for part in parts:
+        word = part.split(": ", 1)[-1].split(" (")[0]
+        if word not in VERDICTS:
+            raise ValueError(f"verdict {word!r} is not one of {VERDICTS}")
+    return f"[{'; '.join(parts)}]({PAGES[page]})"
+
+
+def _row(key: str, ours: str, interval: str, verdict_cell: str, *paths: Path) -> str:
+    """One row: the thesis's side from :data:`THESIS`, ours, its interval, the verdict, the
+    files' links."""
     name, thesis = _thesis(key)
-    links = ", ".join(f"[`{p.name}`]({rel(p)})" for p in paths)
-    return f"| {name} | {thesis} | {ours} | {interval} | {links} |"
+    return f"| {name} | {thesis} | {ours} | {interval} | {verdict_cell} | {_links(paths)} |"
 
 
 def _pending(key: str, *paths: Path) -> str:
     """A row whose result files are not all committed (yet)."""
     name, thesis = _thesis(key)
-    return f"| {name} | {thesis} | pending | - | {', '.join(f'`{p.name}`' for p in paths)} |"
+    files = ", ".join(f"`{p.name}`" for p in paths)
+    return f"| {name} | {thesis} | pending | - | not compared | {files} |"
 
 
 def _ci(lo_hi: list[float], fmt: str = ".1f", unit: str = " %") -> str:
     return f"[{lo_hi[0]:{fmt}}, {lo_hi[1]:{fmt}}]{unit}"
 
 
-def _r1_rows() -> list[str]:
+def _thesis_of(*keys: str) -> str:
+    """The thesis cell of a row that holds several claims of :data:`THESIS`."""
+    thesis = "; ".join(THESIS[k][1] for k in keys)
+    where = ", ".join(dict.fromkeys(THESIS[k][2] for k in keys))
+    return f"{thesis} ({where})"
+
+
+def _links(paths: tuple[Path, ...]) -> str:
+    """The result files' links, each named by its file name (with its folder where two names
+    of the row are the same)."""
+    names = [p.name for p in paths]
+    return ", ".join(
+        f"[`{p.parent.name + '/' if names.count(p.name) > 1 else ''}{p.name}`]({rel(p)})"
+        for p in paths
+    )
+
+
+def _cells(name: str, thesis: str, ours: str, interval: str, v: str, *paths: Path) -> str:
+    links = _links(paths)
+    return f"| {name} | {thesis} | {ours} | {interval} | {v} | {links} |"
+
+
+def _cell(cells: list[dict], **match: float) -> dict:
+    (c,) = [c for c in cells if all(c[k] == v for k, v in match.items())]
+    return c
+
+
+def _r1_row() -> str:
+    """R1 at the experiment's closest cell (slow pull), with the two settings that move it
+    most: the commanded tilt's sign (same file) and the printed 300 N m/rad (the sweep)."""
     path = EVALS_RESULTS / "quasi_static" / "compliance_sweep_rect.json"
-    if not path.exists():
-        return [_pending("R1_top", path), _pending("R1_centre", path)]
+    sweep = EVALS_RESULTS / "compliance_sweep_rect.json"
+    if not path.exists() or not sweep.exists():
+        return _pending("R1", path, sweep)
     d = json.loads(path.read_text())
     b, x = d["best_match_R1"], d["settings"]
     c = b["cell"]
-    where = (
-        f"{c['preset']}, K_theta {c['k_rot_Nm_rad']:g} N m/rad: the closest cell of the "
-        f"experiment at {x['experiment']['speed_m_s'] * 1e3:g} mm/s, "
-        f"{x.get('precision', 'float32')}"
+    top, centre = b["reduction_tip_vs_top_pct"], b["reduction_tip_vs_centre_pct"]
+    flip = _cell(d["cells"], k_rot_Nm_rad=c["k_rot_Nm_rad"], beta0_deg=-c["beta0_deg"])
+    s = json.loads(sweep.read_text())
+    printed = _cell(s["cells"], preset=c["preset"], k_rot_Nm_rad=300.0, beta0_deg=c["beta0_deg"])
+    ours = (
+        f"{top['value']:.1f} / {centre['value']:.1f} % lower ({c['preset']}, K_theta "
+        f"{c['k_rot_Nm_rad']:g} N m/rad, beta0 {c['beta0_deg']:+g} deg, "
+        f"{x['experiment']['speed_m_s'] * 1e3:g} mm/s; at beta0 {-c['beta0_deg']:+g} deg "
+        f"{flip['reduction_tip_vs_top_pct']['value']:.0f} %; at the printed 300 N m/rad "
+        f"{printed['reduction_tip_vs_top_pct']['value']:.1f} %, "
+        f"{s['settings']['experiment']['speed_m_s'] * 1e3:g} mm/s)"
     )
-    out = []
-    for key, red in (("R1_top", "tip_vs_top"), ("R1_centre", "tip_vs_centre")):
-        x = b[f"reduction_{red}_pct"]
-        out.append(_row(key, f"{x['value']:.1f} % lower ({where})", _ci(x["ci95"]), path))
-    return out
+    lo, hi = top["ci95"]
+    thesis_top = float(THESIS["R1"][1].split(" /")[0])
+    top_v = (
+        "top: reproduced in another regime"
+        if lo <= thesis_top <= hi
+        else f"top: not reproduced ({thesis_top:g} % outside)"
+    )
+    lo_c, hi_c = centre["ci95"]
+    thesis_centre = float(THESIS["R1"][1].split("/ ")[1].split(" ")[0])
+    centre_v = (
+        "centre: reproduced in another regime"
+        if lo_c <= thesis_centre <= hi_c
+        else "centre: not reproduced"
+    )
+    interval = f"{_ci(top['ci95'], unit='')} / {_ci(centre['ci95'])}"
+    name, thesis = _thesis("R1")
+    return _cells(name, thesis, ours, interval, verdict("R1", top_v, centre_v), path, sweep)
 
 
 def _r2_row() -> str:
@@ -138,15 +227,29 @@ def _r2_row() -> str:
     )
     ks = " / ".join(f"{c['k_rot_Nm_rad']:g}" for c in cells)
     ours = (
-        f"resolved in {held} of {len(cells)} cells ({d['preset']}, mu {d['mu']:g}, "
-        f"K_theta {ks} N m/rad, {slow:g} mm/s)"
+        f"ordered in {held} of {len(cells)} cells ({d['preset']}, theta0 {d['theta0_deg']:g} deg, "
+        f"mu {d['mu']:g}, K_theta {ks} N m/rad, {slow:g} mm/s)"
     )
     interval = "tip vs top " + " / ".join(
         f"{c['reduction_tip_vs_top_pct']['value']:.1f} "
         f"{_ci(c['reduction_tip_vs_top_pct']['ci95'], unit='')}"
         for c in cells
     )
-    return _row("R2", ours, interval + " %", path)
+    v = "reproduced in another regime" if held == len(cells) else "not reproduced"
+    return _row("R2", ours, interval + " %", verdict("R2", v), path)
+
+
+def _pinned(overrides: dict) -> str:
+    """The physics a policy pins (its ``env_overrides``), in a few words."""
+    out = []
+    if "representation" in overrides:
+        out.append(f"`{overrides['representation']}`")
+    tcs = [v for k, v in overrides.items() if k.startswith("contact.") and "timeconst" in k]
+    if tcs and all(v == 0 for v in tcs):
+        out.append("time constants 0")
+    speed = overrides.get("action.max_speed_m_s")
+    pinned = f"pinned contacts: {', '.join(out)}; " if out else ""
+    return pinned + (f"{speed * 1e3:g} mm/s" if speed else "")
 
 
 def _policy_rows() -> list[str]:
@@ -156,38 +259,38 @@ def _policy_rows() -> list[str]:
     out = []
     if rect.exists():
         ev = json.loads(rect.read_text())
+        meta = json.loads((POLICIES / "rect_extract" / "policy.json").read_text())
         p, b = ev["policy"], ev["baseline"]
-        n = f"`rect`, {ev['episodes']} episodes"
-        out += [
-            _row("R3", f"{ev['force_reduction_pct']:.1f} % lower ({n})", "-", rect),
-            _row(
-                "R4",
-                f"{p['success_rate'] * 100:.1f} %, {p['mean_time_s']:.2f} s ({n})",
-                "-",
-                rect,
-            ),
-            _row("R5", f"{p['peak_fz_N']:.1f} N vs {b['peak_fz_N']:.1f} N ({n})", "-", rect),
-        ]
+        ours = (
+            f"{ev['force_reduction_pct']:.1f} % lower; {p['success_rate'] * 100:.1f} %, "
+            f"{p['mean_time_s']:.2f} s; {p['peak_fz_N']:.1f} vs {b['peak_fz_N']:.1f} N, the mean "
+            f"of per-episode peaks (`rect`, {ev['episodes']} episodes, "
+            f"{_pinned(meta['env_overrides'])})"
+        )
+        v = verdict(
+            "R3", "R3, R4: reproduced in another regime", "R5: not compared (another measure)"
+        )
+        name = "R3 / R4 / R5: policy (RL + CS) vs the Ch 2-3 method: mean force; success, time; "
+        out.append(_cells(name + "peak F_z", _thesis_of("R3", "R4", "R5"), ours, "-", v, rect))
     else:
-        out += [_pending(k, rect) for k in ("R3", "R4", "R5")]
+        out.append(_pending("R3", rect))
     if hard.exists() and hard_paired.exists():
         ev = json.loads(hard.read_text())
         paired = json.loads(hard_paired.read_text())
+        meta = json.loads((POLICIES / "rect_extract_hard" / "policy.json").read_text())
         p = ev["policy"]
-        n = f"`rect_hard`, {ev['episodes']} fresh episodes, seed {ev['seed']}"
-        out += [
-            _row(
-                "R3",
-                f"{paired['reduction_pct']:.1f} % lower ({n})",
-                _ci(paired["bootstrap"]["reduction_pct_95"]) + " (95 %, paired bootstrap)",
-                hard_paired,
-            ),
-            _row(
-                "R4", f"{p['success_rate'] * 100:.1f} %, {p['mean_time_s']:.2f} s ({n})", "-", hard
-            ),
-        ]
+        ours = (
+            f"{paired['reduction_pct']:.1f} % lower; {p['success_rate'] * 100:.1f} %, "
+            f"{p['mean_time_s']:.2f} s (`rect_hard`: {ev['env']}, {ev['preset']}, "
+            f"{_pinned(meta['env_overrides'])}; {ev['episodes']} fresh episodes, "
+            f"seed {ev['seed']})"
+        )
+        interval = _ci(paired["bootstrap"]["reduction_pct_95"]) + " (paired bootstrap)"
+        v = verdict("rect_hard", "reproduced in another regime")
+        name = "R3 / R4 on a harder variant: mean force; success, time"
+        out.append(_cells(name, _thesis_of("R3", "R4"), ours, interval, v, hard_paired, hard))
     else:
-        out += [_pending("R3", hard_paired), _pending("R4", hard)]
+        out.append(_pending("R3", hard_paired, hard))
     return out
 
 
@@ -206,36 +309,72 @@ def _r6_row() -> str:
         f"pushed {hull['displacement_after_hold_mm']:.1f} mm off it, {placed(hull)}; "
         f"pieces: {placed(pieces)}, extracted {'yes' if pieces['extracted'] else 'no'}"
     )
-    return _row("R6", ours, "- (one run each)", path)
+    ok = not hull["placed_inserted"] and pieces["placed_inserted"] and pieces["extracted"]
+    v = verdict("R6", "reproduced" if ok else "not reproduced")
+    return _row("R6", ours, "- (one run each)", v, path)
+
+
+def collapsed(d: dict) -> bool:
+    """Whether both arms of an RL vs RL + CS study end below :data:`COLLAPSED` success."""
+    return all(
+        d[arm]["over_seeds"]["final_success_rate"]["mean"] < COLLAPSED for arm in ("rl_cs", "rl")
+    )
 
 
 def latest_per_env() -> list[Path]:
-    """The newest multi-seed RL vs RL + CS comparison of each env (by its recorded date)."""
+    """The newest multi-seed RL vs RL + CS comparison of each env (by its recorded date),
+    leaving out studies of two collapsed learners (:func:`collapsed`)."""
     latest: dict[str, tuple[str, Path]] = {}
     for path in rl_vs_rlcs_files():
         d = json.loads(path.read_text())
         if "c4_2" not in d:  # single-seed comparisons: no intervals, no C4.2
+            continue
+        if collapsed(d):
             continue
         if d["env"] not in latest or d["date"] > latest[d["env"]][0]:
             latest[d["env"]] = (d["date"], path)
     return sorted(p for _, p in latest.values())
 
 
+def _arm(d: dict, arm: str) -> dict:
+    """An arm's recorded settings (its results left out)."""
+    return {k: v for k, v in d[arm].items() if k not in ("run", "per_seed", "over_seeds")}
+
+
+def _same(values: list[str]) -> str:
+    """One value when all agree, else each joined by `` / ``."""
+    return values[0] if len(set(values)) == 1 else " / ".join(values)
+
+
 def _c4_rows() -> list[str]:
-    out = []
-    for path in latest_per_env():
-        d = json.loads(path.read_text())
-        c1, c2 = d["c4_1"], d["c4_2"]
-        ours = (
-            f"C4.1 {c1['verdict']}; C4.2 RL + CS {c2['verdict']['rl_cs']}, RL "
-            f"{c2['verdict']['rl']} ({d['env']}, {len(d['rl_cs']['seeds'])} seeds per arm)"
-        )
-        ci = c1.get("rl_minus_cs_train_mean_fz_N_ci95")
-        interval = (
-            "-" if ci is None else f"RL minus RL + CS mean F_z {fmt_interval(ci)} N (95 %, Welch)"
-        )
-        out.append(_row("C4", ours, interval, path))
-    return out
+    """One row for the newest multi-seed study of each env (C4.1 and C4.2 side by side)."""
+    paths = latest_per_env()
+    if not paths:
+        return []
+    word = {"confirmed": "reproduced", "not confirmed": "not reproduced"}
+    ds = [json.loads(p.read_text()) for p in paths]
+    envs = [d["env"] for d in ds]
+    diffs = sorted({k for d in ds for k, _, _ in settings_diff(_arm(d, "rl_cs"), _arm(d, "rl"))})
+    engines = _same(["mujoco" if "_mujoco_" in p.name else "mjx" for p in paths])
+    seeds = _same([str(len(d["rl_cs"]["seeds"])) for d in ds])
+    steps = _same([f"{d['rl_cs']['env_steps'] / 1e3:.0f}k" for d in ds])
+    ours = (
+        f"{' / '.join(envs)}, {seeds} seeds per arm, {steps} env steps, "
+        f"`{engines}` engine; only {', '.join(diffs)} differs (env overrides not recorded)"
+    )
+    cis = [d["c4_1"].get("rl_minus_cs_train_mean_fz_N_ci95") for d in ds]
+    interval = (
+        "-"
+        if None in cis
+        else f"RL minus RL + CS mean F_z {' / '.join(fmt_interval(c) for c in cis)} N (Welch)"
+    )
+    c41 = _same([word[d["c4_1"]["verdict"]] for d in ds])
+    c42 = _same([word[d["c4_2"]["verdict"]["rl_cs"]] for d in ds])
+    rl_off = [e for e, d in zip(envs, ds, strict=True) if d["c4_2"]["verdict"]["rl"] != "confirmed"]
+    if rl_off:
+        c42 += f" (RL without it: not on {', '.join(rl_off)})"
+    v = verdict("C4", f"C4.1: {c41}", f"C4.2: {c42}")
+    return [_row("C4", ours, interval, v, *paths)]
 
 
 def _throughput_row() -> str:
@@ -243,12 +382,33 @@ def _throughput_row() -> str:
         return _pending("throughput", ENGINES_CSV)
     rows = engine_rows()
     mj = engine_rate(rows, "mujoco", "rect")
+    pb = engine_rate(rows, "pybullet", "rect", 1)
     ours = (
-        f"{mj / engine_rate(rows, 'mjx-jax', 'rect'):.1f}x MJX-JAX, "
-        f"{mj / engine_rate(rows, 'pybullet', 'rect', 1):.1f}x one PyBullet process "
-        "(2-core CPU)"
+        f"{mj / engine_rate(rows, 'mjx-jax', 'rect'):.1f}x MJX-JAX (both 64 worlds); "
+        f"{mj / pb:.1f}x one PyBullet process: {mj:.0f} env steps/s of 64 worlds on 2 threads "
+        f"vs {pb:.0f} of one world in one process"
     )
-    return _row("throughput", ours, "- (one run)", ENGINES_CSV)
+    return _row("throughput", ours, "- (one run)", NO_CLAIM, ENGINES_CSV)
+
+
+def _train_settings(d: dict) -> dict:
+    """A time-to-success run's recorded settings: its config with the engine (recorded at the
+    top level, absent before the engine existed: mjx) among the env overrides."""
+    cfg = dict(d["config"])
+    cfg.pop("compliance_strategy", None)  # newer files copy env_overrides' entry here
+    cfg["env_overrides"] = {**cfg.get("env_overrides", {}), "engine": d.get("engine", "mjx")}
+    return cfg
+
+
+def engines_differ(a: dict, b: dict) -> str:
+    """What differs between two of our time-to-success runs: their recorded configs diffed,
+    and the code (the date of each run)."""
+    diffs = [
+        (k.removeprefix("env_overrides."), x, y)
+        for k, x, y in settings_diff(_train_settings(a), _train_settings(b))
+    ]
+    text = fmt_settings_diff(diffs, unset="default")
+    return f"{text}; code of {a['date'][:10]} vs {b['date'][:10]}"
 
 
 def _time_rows() -> list[str]:
@@ -257,32 +417,31 @@ def _time_rows() -> list[str]:
     ours = [ours_result_path("RectExtract", "cpu-2core", e) for e in ("mjx", "mujoco")]
     if seed_p.exists() and all(p.exists() for p in ours):
         seed = json.loads(seed_p.read_text())
-        times = []
-        for p in ours:
-            c = compare(seed, json.loads(p.read_text()))
-            eng = json.loads(p.read_text()).get("engine", "mjx")
-            times.append(f"ours {c['ours_time_s']:.0f} s (engine {eng})")
-        t_seed = compare(seed, json.loads(ours[0].read_text()))["seed_time_s"]
-        ours_txt = f"seed stack {t_seed:.0f} s; " + "; ".join(times)
-        out.append(_row("time", ours_txt, "- (one run each)", seed_p, *ours))
+        a, b = (json.loads(p.read_text()) for p in ours)
+        ca, cb = compare(seed, a), compare(seed, b)
+        ours_txt = (
+            f"seed stack {ca['seed_time_s']:.0f} s; ours {ca['ours_time_s']:.0f} s vs "
+            f"{cb['ours_time_s']:.0f} s at {a['env_steps_to_success'] / 1e3:.1f}k vs "
+            f"{b['env_steps_to_success'] / 1e3:.1f}k env steps; ours differ in "
+            f"{engines_differ(a, b)}"
+        )
+        out.append(_row("time", ours_txt, "- (one run each)", NO_CLAIM, seed_p, *ours))
     else:
         out.append(_pending("time", seed_p, *ours))
     seed_p = seed_result_path(HARD_ENV, "cpu-2core")
     ours = [ours_result_path(HARD_ENV, "cpu-2core", e) for e in ("mjx", "mujoco")]
     if seed_p.exists() and all(p.exists() for p in ours):
         seed = json.loads(seed_p.read_text())
-        best = []
-        for p in ours:
-            d = json.loads(p.read_text())
-            c = compare(seed, d)
-            t = d.get("time_to_success_s")
-            reached = f", 95 % in {t:.1f} s" if t is not None else ""
-            best.append(
-                f"ours {c['ours_best_success']:.2f} (engine {d.get('engine', 'mjx')}{reached})"
-            )
-        c = compare(seed, json.loads(ours[0].read_text()))
-        ours_txt = f"seed stack {c['seed_best_success']:.2f}; " + "; ".join(best)
-        out.append(_row("time_hard", ours_txt, "- (one run each)", seed_p, *ours))
+        a, b = (json.loads(p.read_text()) for p in ours)
+        ca, cb = compare(seed, a), compare(seed, b)
+        t = b.get("time_to_success_s")
+        reached = f", 95 % in {t:.1f} s" if t is not None else ""
+        ours_txt = (
+            f"seed stack {ca['seed_best_success']:.2f}; ours {ca['ours_best_success']:.2f} vs "
+            f"{cb['ours_best_success']:.2f}{reached}; ours differ in {engines_differ(a, b)} "
+            f"(`{a['profile']}` profile of each date)"
+        )
+        out.append(_row("time_hard", ours_txt, "- (one run each)", NO_CLAIM, seed_p, *ours))
     else:
         out.append(_pending("time_hard", seed_p, *ours))
     return out
@@ -290,9 +449,10 @@ def _time_rows() -> list[str]:
 
 @table("results_brief")
 def results_brief() -> str:
-    """The README's claims table: thesis, ours, interval, result file (at most 15 rows)."""
+    """The README's claims table: thesis, ours, interval, verdict, result file (at most 15
+    rows)."""
     rows = [
-        *_r1_rows(),
+        _r1_row(),
         _r2_row(),
         *_policy_rows(),
         _r6_row(),
@@ -304,8 +464,8 @@ def results_brief() -> str:
         raise ValueError(f"results_brief has {len(rows)} rows, at most {MAX_ROWS}")
     return "\n".join(
         [
-            "| claim | thesis | ours | interval | result file |",
-            "|---|---|---|---|---|",
+            "| claim | thesis | ours | interval | verdict | result file |",
+            "|---|---|---|---|---|---|",
             *rows,
         ]
     )
