@@ -303,6 +303,8 @@ def _run(args, command: list[str]) -> int:
         "eval_every": args.eval_every,
         "eval_episodes": args.eval_episodes,
         "tasks": tasks,
+        # the provenance rule (benchmarks/provenance_rule.py): each task's full training config
+        "config": "see tasks; each task's full training config is its entry's 'config'",
         **prov,
     }
     fileio.write_text(out / "learning.json", dumps(doc, indent=2) + "\n")
