@@ -14,7 +14,7 @@ import threading
 import traceback
 
 import peghole_mjx._mjx  # noqa: F401  (first: keeps mjx's import chatter off stdout)
-from peghole_mjx import __version__
+from peghole_mjx import __version__, runtime
 from peghole_mjx.errors import REPORTED_ERRORS
 
 #: command group -> module that defines it
@@ -95,6 +95,11 @@ def _handle_sigterm():
 
 
 def main(argv: list[str] | None = None) -> int:
+    """The ``peghole`` entry point: process-wide settings first
+    (:func:`peghole_mjx.runtime.configure`; importing JAX and MJX above starts no backend, so
+    the XLA flags still apply), then the command."""
+    runtime.configure()
+
     previous = _handle_sigterm()
     try:
         return _run(argv)

@@ -17,6 +17,9 @@ for ``jam_time_s``), a non-finite world, or (MuJoCo Warp) a contact buffer overf
 the native env's, eq (4.4) unchanged: the time-limit step's reward includes the failure term
 ``r_failure``, since the thesis counts a time-out as a failed extraction.
 
+Worlds are sized before anything is allocated: ``num_envs`` worlds whose states do not fit
+the available memory are refused in one line (:func:`peghole_mjx.memory.check_worlds`).
+
 Actions are checked before they reach the env: real numbers (an integer or float dtype;
 complex, boolean, text or object arrays are refused, not cast) of the action space's shape, or
 :class:`~peghole_mjx.errors.UserInputError`. Values outside [-1, 1] are clipped by the env;
@@ -46,7 +49,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from peghole_mjx import envs
+from peghole_mjx import envs, memory
 from peghole_mjx._optional import optional_import
 from peghole_mjx.errors import UserInputError
 from peghole_mjx.validation import check
@@ -120,6 +123,10 @@ class PegHoleVectorEnv(VectorEnv):
     ):
         num_envs = check("num_envs", num_envs)  # an integer >= 1 (true, 2.7 refused)
         self.env = envs.load(name, config_overrides=config_overrides)
+        # before anything is allocated or compiled: the worlds must fit in memory
+        memory.check_worlds(
+            self.env, num_envs, f"PegHoleVectorEnv(num_envs={num_envs})", "use fewer worlds"
+        )
         self.num_envs = num_envs
         self.single_observation_space, self.single_action_space = _spaces(self.env)
         self.observation_space = batch_space(self.single_observation_space, self.num_envs)

@@ -438,3 +438,29 @@ def _max_nesting(text: str) -> int:
         elif t in "]}":
             depth -= 1
     return deepest
+
+
+#: the smallest force a reduction is computed from (decided 2026-12-04): below it a force is
+#: contact noise (float32 MuJoCo/MJX, a frictionless oracle's 0 N), and a percentage of it
+#: (-390 % of 0.0004 N) says nothing; such a reduction is "not resolved" (None, JSON null)
+FORCE_FLOOR_N = 0.01
+
+
+def reduction_pct(reduced: Any, reference: Any, floor_N: float = FORCE_FLOOR_N) -> float | None:
+    """``100 (1 - reduced / reference)`` of two forces (N; arrays: their means), or None (not
+    resolved) when either is below ``floor_N`` or not finite: a percentage of a force the
+    simulation does not resolve is not reported."""
+    a, b = float(_mean(reduced)), float(_mean(reference))
+    if not (math.isfinite(a) and math.isfinite(b)) or min(abs(a), abs(b)) < floor_N:
+        return None
+    return 100.0 * (1.0 - a / b)
+
+
+def _mean(x: Any) -> float:
+    """The mean of a number or a (nested) sequence or array of numbers; NaN for none."""
+    if hasattr(x, "mean") and hasattr(x, "size"):
+        return float(x.mean()) if x.size else math.nan
+    if isinstance(x, list | tuple):
+        flat = [float(v) for v in x]
+        return sum(flat) / len(flat) if flat else math.nan
+    return float(x)

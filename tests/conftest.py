@@ -27,6 +27,12 @@ import jax
 import pytest
 
 import peghole_mjx._mjx  # noqa: F401
+from peghole_mjx import runtime
+
+# the commands' process-wide settings (XLA's CPU flag, headless GL; the cache folder above is
+# kept): importing the package sets nothing. Importing JAX starts no backend, so XLA_FLAGS set
+# here still applies to the first computation
+runtime.configure()
 
 #: tests/test_playground.py is the optional suite (README): .ci/run installs MuJoCo Playground
 #: and runs it by name after the main suite, so a run over the folder leaves it out (where

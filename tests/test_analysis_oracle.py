@@ -219,3 +219,17 @@ def test_planar_template_sign_of_quadratics_matches_forces():
         assert np.all(np.sign(f.N_B[ok]) == np.sign(planar.poly2(qb, s)[ok]))
         ok = np.abs(f.N_A) > 1e-9 * (1 + np.abs(f.N_B))
         assert np.all(np.sign(f.N_A[ok]) == np.sign(planar.poly2(qa, s)[ok]))
+
+
+@pytest.mark.parametrize("mu", [0.0, -0.0])
+def test_oracle_at_zero_friction_raises_no_arithmetic_warning(mu):
+    """At mu 0 some contact subsets have no solution (inf/NaN entries); they are masked, and
+    their arithmetic must not leak a RuntimeWarning to the user (seen at --mu -0.0)."""
+    import warnings
+
+    spec = with_changes(get_preset("dual-2"), friction=abs(mu))
+    body, _ = dual.oracle_body(spec, "5", np.linspace(0, 50, 6)[:, None])
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", RuntimeWarning)
+        sol = oracle.solve(body, np.linspace(2, 48, 12)[None, :])
+    assert sol.valid.mean() > 0.5

@@ -290,18 +290,21 @@ def test_peg_length_comes_from_the_preset():
 
 
 def test_impl_and_warp_buffers_are_read(monkeypatch):
-    """impl selects the backend; naconmax and njmax size MuJoCo Warp's buffers (CUDA only)."""
+    """impl selects the backend; naconmax and njmax size MuJoCo Warp's buffers, whose
+    make_data takes the compiled MjModel (mujoco-mjx 3.17.0 refuses an mjx.Model)."""
     if not base.WARP_AVAILABLE:
         with pytest.raises(UserInputError, match="warp"):
             envs.load(ENV, config_overrides={"impl": "warp"})
     seen = []
-    monkeypatch.setattr(base.mjx, "make_data", lambda m, **kw: seen.append(kw))
+    monkeypatch.setattr(base.mjx, "make_data", lambda m, **kw: seen.append((m, kw)))
     for over in ({}, {"naconmax": 32, "njmax": 128}):
         c = apply_overrides(envs.get_default_config(ENV), {"impl": "warp", **over})
-        base.PegHoleBase._make_data(types.SimpleNamespace(_config=c, _mjx_model=None))
+        base.PegHoleBase._make_data(
+            types.SimpleNamespace(_config=c, _mj_model="mj", _mjx_model=None)
+        )
     assert seen == [
-        {"impl": "warp", "naconmax": 64, "njmax": 256},
-        {"impl": "warp", "naconmax": 32, "njmax": 128},
+        ("mj", {"impl": "warp", "naconmax": 64, "njmax": 256}),
+        ("mj", {"impl": "warp", "naconmax": 32, "njmax": 128}),
     ]
 
 

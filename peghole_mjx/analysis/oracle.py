@@ -235,8 +235,11 @@ def solve(
             else:
                 ok &= (gap >= -gap_tol) | ~app
         fz = np.zeros(shape)
-        for k in subset:
-            fz -= lam[..., k] * geo[k][3]
+        # a subset with no solution (e.g. frictional contacts at mu 0) holds inf/NaN entries:
+        # masked by ``ok`` below, so their arithmetic warnings are not the user's
+        with np.errstate(invalid="ignore", over="ignore"):
+            for k in subset:
+                fz -= lam[..., k] * geo[k][3]
         active = np.zeros((*shape, n), dtype=bool)
         for k in subset:
             active[..., k] = True

@@ -17,6 +17,7 @@ from peghole_mjx.envs import dual_extract, mesh_extract, rect_extract
 from peghole_mjx.envs.base import State
 from peghole_mjx.envs.extraction import PegHoleEnv
 from peghole_mjx.errors import UserInputError
+from peghole_mjx.geometry.specs import get_preset
 
 _envs: dict[str, type[PegHoleEnv]] = {
     "RectExtract": rect_extract.RectExtract,
@@ -48,6 +49,25 @@ def _check(name: str) -> None:
         raise UserInputError(f"unknown env {name!r}; choose one of {list(ENV_NAMES)}")
 
 
+def _scene_kind(preset: str) -> str:
+    """The geometry kind of ``preset`` (``rect``, ``dual``), or ``task`` for none (a task
+    folder's parts)."""
+    return get_preset(preset).kind if preset else "task"
+
+
+def _check_scene(name: str, config: config_dict.ConfigDict, overrides: dict | None) -> None:
+    """Refuse a ``config`` (with ``overrides``' preset, if any) whose preset is not of the
+    kind of env ``name``'s default preset."""
+    preset = (overrides or {}).get("preset", config.get("preset", ""))
+    default = _cfgs[name]().get("preset", "")
+    if _scene_kind(preset or "") != _scene_kind(default or ""):
+        raise UserInputError(
+            f"envs.load({name!r}, config=...): the config's preset {preset!r} is not a "
+            f"{_scene_kind(default or '')} scene as {name}'s ({default!r}): give "
+            f"get_default_config({name!r}) or the env the config was made for"
+        )
+
+
 def get_default_config(name: str) -> config_dict.ConfigDict:
     """The default config of env ``name``."""
     _check(name)
@@ -57,8 +77,13 @@ def get_default_config(name: str) -> config_dict.ConfigDict:
 def load(
     name: str, config: config_dict.ConfigDict | None = None, config_overrides: dict | None = None
 ) -> PegHoleEnv:
-    """Build env ``name`` with its default config (or ``config``) and flat overrides."""
+    """Build env ``name`` with its default config (or ``config``) and flat overrides.
+
+    A ``config`` carries its scene: one whose preset is of another kind than ``name``'s
+    default (DualExtract's config given to RectExtract) is refused in one line."""
     _check(name)
+    if config is not None:
+        _check_scene(name, config, config_overrides)
     env = _envs[name](config or get_default_config(name), config_overrides)
     env.env_name = name  # the hard variants share their base env's class
     return env

@@ -74,7 +74,8 @@ class PegHoleBase:
             )
         if config.impl == "warp" and not WARP_AVAILABLE:
             raise UserInputError(
-                "impl='warp' needs warp-lang and a CUDA GPU: pip install 'peghole_mjx[warp]'"
+                "impl='warp' needs warp-lang (MuJoCo Warp; a CUDA GPU for speed, a CPU runs "
+                "it slowly): pip install 'peghole_mjx[warp]'"
             )
         n_sub = config.ctrl_dt / config.sim_dt
         if abs(n_sub - round(n_sub)) > 1e-6 or n_sub < 1:
@@ -155,7 +156,13 @@ class PegHoleBase:
             MujocoEngine(m, self._ctrl, ids, self._n_substeps, threads=config.mujoco_threads)
             if config.engine == "mujoco"
             else MjxEngine(
-                self._mjx_model, self._ctrl, ids, config.impl, config.naconmax, config.njmax
+                lambda: self._mjx_model,  # the env's current model: Playground swaps it per world
+                self._ctrl,
+                ids,
+                config.impl,
+                config.naconmax,
+                config.njmax,
+                mj_model=m,
             )
         )
 
@@ -186,10 +193,13 @@ class PegHoleBase:
 
     # ------------------------------------------------------------------ data and readings
     def _make_data(self):
-        """An MJX ``mjx.Data`` at the model's defaults (the reset's IK runs in MJX)."""
+        """An MJX ``mjx.Data`` at the model's defaults (the reset's IK runs in MJX).
+
+        MuJoCo Warp's ``make_data`` takes the compiled ``mujoco.MjModel`` only (mujoco-mjx
+        3.17.0 raises ValueError for an ``mjx.Model``); MJX-JAX's takes the ``mjx.Model``."""
         c = self._config
         if c.impl == "warp":
-            return mjx.make_data(self._mjx_model, impl="warp", naconmax=c.naconmax, njmax=c.njmax)
+            return mjx.make_data(self._mj_model, impl="warp", naconmax=c.naconmax, njmax=c.njmax)
         return mjx.make_data(self._mjx_model, impl="jax")
 
     def _tip_world(self, r: Readout):

@@ -15,7 +15,11 @@ from peghole_mjx.envs.engines import CLI_ENGINES, engine_overrides
 from peghole_mjx.envs.mesh_extract import absolute_task
 from peghole_mjx.errors import UserInputError
 from peghole_mjx.geometry.specs import get_preset
-from peghole_mjx.training.evaluate import config_differences
+from peghole_mjx.training.evaluate import (
+    check_requested_env,
+    config_differences,
+    requested_config,
+)
 from peghole_mjx.validation import arg, dumps, key_value
 
 #: ``--policy`` of the envs subcommands
@@ -65,9 +69,16 @@ def _env_arguments(q: argparse.ArgumentParser) -> None:
         "--engine",
         choices=CLI_ENGINES,
         default=None,
-        help="physics engine: mjx (MuJoCo MJX), mjx-warp (MuJoCo Warp, CUDA), mujoco (MuJoCo C, "
+        help="physics engine: mjx (MuJoCo MJX), mjx-warp (MuJoCo Warp: CUDA GPU; a CPU runs "
+        "one world slowly), mujoco (MuJoCo C, "
         "mujoco.batch threads), auto (mujoco without a GPU, else mjx). Default: auto for "
         "scripted/random, the policy's own engine for a policy",
+    )
+    q.add_argument(
+        "--cross",
+        action="store_true",
+        help="run a policy in an env other than its training env (--engine, --preset, --set), "
+        "as evaluate --cross; without it such a run is refused",
     )
     q.add_argument("--seed", type=arg("seed"), default=0, help="the episodes' reset seed")
     q.add_argument("--preset", help="override the env's preset (same geometry kind)")
@@ -112,6 +123,8 @@ def _env_and_policy(args: argparse.Namespace, quiet: bool = False):
         bundle = policies.load_policy(args.policy)
         if bundle.env_name != args.env:
             raise UserInputError(f"policy {args.policy} was trained on {bundle.env_name}")
+        # as evaluate: another engine, preset or config entry only with --cross (nothing built)
+        check_requested_env(bundle, requested_config(bundle, overrides), args.cross)
     try:
         with prog.phase(f"building the {args.env} env", enabled=not quiet):
             if bundle is not None:  # the env exactly as trained (plus --set)
@@ -122,7 +135,7 @@ def _env_and_policy(args: argparse.Namespace, quiet: bool = False):
         raise UserInputError(f"bad config override: {exc}") from None
     if bundle is not None:
         for key, (trained, now) in config_differences(bundle, env.config).items():
-            # an exploration of other settings: said, never written into the policy folder
+            # a --cross run in other settings: said, never written into the policy folder
             print(
                 f"not the policy's training env: {key} = {now!r} (trained {trained!r})",
                 file=sys.stderr,

@@ -19,7 +19,7 @@ an engine is only this:
 Engines, chosen by the env config entry ``engine``:
 
 * ``mjx`` (:class:`MjxEngine`, this module): MuJoCo MJX, ``impl`` ``jax`` (CPU, GPU) or
-  ``warp`` (MuJoCo Warp, CUDA GPU); the state is an ``mjx.Data``;
+  ``warp`` (MuJoCo Warp: CUDA GPU, or slowly a CPU); the state is an ``mjx.Data``;
 * ``mujoco`` (:class:`peghole_mjx.envs.engine_mujoco.MujocoEngine`): MuJoCo C through
   ``mujoco.batch`` on a thread pool, entered from the jitted env through ``jax.pure_callback``;
   the state is MuJoCo's integration state row, float64 carried bit for bit.
@@ -134,23 +134,40 @@ class MjxEngine:
 
     def __init__(
         self,
-        mjx_model,
+        model: mjx.Model | Callable[[], mjx.Model],
         ctrl: ImpedanceController,
         ids: SceneIds,
         impl: str = "jax",
         naconmax: int = 64,
         njmax: int = 256,
+        mj_model: mujoco.MjModel | None = None,
     ):
-        self.model = mjx_model
+        """``model``: the ``mjx.Model``, or a function returning the model to step with now.
+
+        An env passes ``lambda: env._mjx_model``: the physics then reads the env's current
+        model at every trace of a reset or step, so a wrapper that swaps ``_mjx_model`` for a
+        per-world model under ``vmap`` (MuJoCo Playground's domain randomisation) randomises
+        the physics. ``mj_model``: the compiled model, needed by MuJoCo Warp's ``make_data``
+        (it refuses an ``mjx.Model``)."""
+        if impl == "warp" and mj_model is None:
+            raise UserInputError("impl='warp' needs the compiled mujoco.MjModel (mj_model)")
+        self._model = model
+        self.mj_model = mj_model
         self.ctrl = ctrl
         self.ids = ids
         self.impl = impl
         self._buffers = {"naconmax": naconmax, "njmax": njmax} if impl == "warp" else {}
-        self._pair_friction0 = np.asarray(mjx_model.pair_friction)
+
+    @property
+    def model(self) -> mjx.Model:
+        """The model the physics steps with: the env's current one (see ``__init__``)."""
+        return self._model() if callable(self._model) else self._model
 
     def make_data(self):
         """An ``mjx.Data`` at the model's defaults (no forward pass)."""
-        return mjx.make_data(self.model, impl=self.impl, **self._buffers)
+        if self.impl == "warp":  # Warp's make_data takes the MjModel, not an mjx.Model
+            return mjx.make_data(self.mj_model, impl="warp", **self._buffers)
+        return mjx.make_data(self.model, impl=self.impl)
 
     def init_data(
         self, q_arm: jax.Array, hole_pos: jax.Array, hole_quat: jax.Array, mass_scale=None
@@ -212,15 +229,29 @@ class MjxEngine:
         """One physics step per row of ``targets`` (n_sub, 3: the compliance centre's commanded
         position), the law before each; returns ``(data, wrenches (n_sub, 6))``.
         ``mass_scale``: the peg's mass and inertia factor of the world (None: nominal)."""
-        m = self.model.replace(pair_friction=jnp.asarray(self._pair_friction0) * friction_scale)
+        m = self.model
+        m = m.replace(pair_friction=m.pair_friction * friction_scale)
         m = self.scaled_mass(m, mass_scale)
 
+        law_m = self.law_model(m)
+
         def substep(d, pos):
-            d, _ = self.ctrl.apply(m, d, Target(pos=pos, mat=target_mat, vel=target_vel), params)
+            target = Target(pos=pos, mat=target_mat, vel=target_vel)
+            d, _ = self.ctrl.apply(law_m, d, target, params)
             d = mjx.step(m, d)
             return d, sense(self.ft_reading(d))
 
         return jax.lax.scan(substep, data, targets)
+
+    def law_model(self, m):
+        """The model the impedance law reads ``m`` as. MuJoCo Warp keeps the mass matrix in
+        MuJoCo's compressed rows (``M``) whatever the Jacobian type, so the law's full-inertia
+        read (MJX's ``support.full_m``) must take the sparse path there: ``m`` marked sparse
+        (reconstructs MuJoCo C's ``mj_fullM`` to 7e-7 on the rect scene, measured 2026-12-04).
+        The physics steps with ``m`` itself. MJX-JAX: ``m`` unchanged."""
+        if self.impl != "warp":
+            return m
+        return m.replace(opt=m.opt.replace(jacobian=mujoco.mjtJacobian.mjJAC_SPARSE))
 
     def set_eq_active(self, data, eq: int, active: jax.Array):
         """``data`` with equality constraint ``eq`` switched on where ``active`` (a bool of

@@ -66,6 +66,7 @@ from peghole_mjx.envs.randomization import (
     tool_error_on,
 )
 from peghole_mjx.envs.reward import outcome_terms, reward_terms
+from peghole_mjx.errors import UserInputError
 from peghole_mjx.geometry.mjcf import TOOL_DOWN_MAT
 from peghole_mjx.geometry.specs import MM
 
@@ -506,6 +507,11 @@ class PegHoleEnv(PegHoleBase):
         return terms, failure * (1.0 - terminal_failure)
 
     def step(self, state: State, action: jax.Array) -> State:
+        if jnp.shape(action)[-1:] != (self.action_size,):  # at trace time: costs nothing
+            raise UserInputError(
+                f"action of shape {jnp.shape(action)}: {type(self).__name__} takes "
+                f"{self.action_size} actions per world"
+            )
         c = self._config
         rc = c.randomization
         info = dict(state.info)

@@ -12,8 +12,13 @@ the model-level hook Playground vmaps over.
 Two randomisations then compose. The env's own per-episode draw
 (:func:`peghole_mjx.envs.randomization.randomization_fn`: hole pose, commanded error,
 friction scale, k_xy) runs inside ``reset`` for every world; Playground's hook varies fields of
-the compiled model per world. The env overwrites ``pair_friction`` from its own draw at every
-step, so a Playground hook must not randomise friction (it would have no effect).
+the compiled model per world, and the MJX engine steps with the env's current ``_mjx_model``
+(:class:`peghole_mjx.envs.engines.MjxEngine` reads it at every trace), so every field a hook
+varies (``dof_damping``, ``body_mass``, ``pair_friction``, ...) reaches the physics
+(``tests/test_model_swap.py``). A hook's ``pair_friction`` is multiplied by the env's own
+friction-scale draw at every step. The scene's contacts are explicit ``<pair>`` elements: a hook on
+``geom_friction`` has no effect on them. The ``mujoco`` engine (MuJoCo C) does not read an
+``mjx.Model``: Playground's hooks need ``engine=mjx``.
 
 Needs the ``playground`` extra (``pip install -e ".[playground]"``).
 """

@@ -218,6 +218,7 @@ def rollout(
     if not jax.config.jax_threefry_partitionable:
         raise RuntimeError("rollout needs jax_threefry_partitionable=True (prefix-stable keys)")
     batch = episodes if batch is None else max(1, min(batch, episodes))
+    check_policy_actions(env, policy, params)  # traced for shapes only: nothing compiled
     # before anything is allocated or compiled: the worlds of one batch must fit in memory
     memory.check_worlds(env, batch, "a rollout batch", "run fewer episodes at once (--batch)")
     rng, reset_keys = episode_keys(seed, episodes)
@@ -263,6 +264,29 @@ def rollout(
     if refuse_all_nan:
         check_not_all_nan(result, env, params)
     return result
+
+
+def check_policy_actions(env: PegHoleEnv, policy: Callable, params: Any = None) -> None:
+    """Refuse (one line) a policy whose action is not one vector of ``env.action_size`` real
+    numbers (a 4- or 9-action policy on a 6-action env): its output is traced with
+    ``jax.eval_shape`` (shapes only, nothing compiled or run) before any rollout."""
+    obs = jax.ShapeDtypeStruct((env.observation_size,), jnp.float32)
+    key = jax.eval_shape(lambda: jax.random.PRNGKey(0))
+    if params is None:
+        out = jax.eval_shape(policy, obs, key)
+    else:
+        out = jax.eval_shape(policy, params, obs, key)
+    want, name = (env.action_size,), getattr(env, "env_name", type(env).__name__)
+    if not hasattr(out, "shape") or tuple(out.shape) != want:
+        got = tuple(out.shape) if hasattr(out, "shape") else type(out).__name__
+        raise UserInputError(
+            f"the policy gives actions of shape {got}; {name} takes one action "
+            f"vector of shape {want} (its action_size)"
+        )
+    if not jnp.issubdtype(out.dtype, jnp.floating):
+        raise UserInputError(
+            f"the policy gives actions of dtype {out.dtype}; {name} takes float actions in [-1, 1]"
+        )
 
 
 def check_not_all_nan(result: RolloutResult, env: PegHoleEnv, params: Any = None) -> None:

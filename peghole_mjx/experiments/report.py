@@ -30,6 +30,7 @@ from peghole_mjx.experiments.compliance import (
     two_point_interval,
 )
 from peghole_mjx.geometry.specs import PRESETS
+from peghole_mjx.validation import reduction_pct
 
 #: curves.csv and the plots: forces binned on depth (keeps curves.csv < 100 kB), mm
 DEPTH_BIN_MM = {"rect": 2.5, "dual": 1.0}
@@ -46,7 +47,10 @@ def _lc_key(L_C_m: float) -> str:
 
 
 def _reduction(a: float, b: float) -> float:
-    return round(100.0 * (1.0 - a / b), 2) if b > 0 else float("nan")
+    """``100 (1 - a / b)`` of two peak forces, NaN (not resolved) when either is below
+    :data:`~peghole_mjx.validation.FORCE_FLOOR_N` (a percentage of 0.0004 N is noise)."""
+    pct = reduction_pct(a, b)
+    return float("nan") if pct is None else round(pct, 2)
 
 
 def binned(res: dict, world: int, edges: np.ndarray) -> np.ndarray:

@@ -14,6 +14,8 @@ hulls then eat the clearance.
 from __future__ import annotations
 
 import math
+import multiprocessing
+import signal
 import warnings
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
@@ -121,14 +123,79 @@ def load_mesh(path: str | Path, units: str = "mm"):
     return mesh
 
 
-def run_coacd(mesh, params: CoacdParams = CoacdParams()) -> list[np.ndarray]:
-    """Convex hulls (list of vertex arrays, metres) of ``mesh`` by CoACD."""
-    coacd = _cad("coacd")
-    trimesh = _cad("trimesh")
+#: the most faces a mesh given to CoACD may have (decided 2026-12-04): CoACD on a 786 000-face
+#: mesh ran over 15 minutes; a peg or hole part exported from CAD needs far fewer
+COACD_MAX_FACES = 200_000
 
-    coacd.set_log_level("error")
-    parts = coacd.run_coacd(
-        coacd.Mesh(np.asarray(mesh.vertices), np.asarray(mesh.faces)),
+#: seconds the CoACD child is given to end after SIGTERM before it is killed
+COACD_KILL_AFTER_S = 2.0
+
+
+def _coacd_child(conn, vertices, faces, kwargs) -> None:
+    """CoACD in the child process: sends ``("ok", [(verts, faces), ...])`` or ``("error",
+    text)``. Ctrl-C is the parent's to handle (it ends this process)."""
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    try:
+        coacd = _cad("coacd")
+        coacd.set_log_level("error")
+        parts = coacd.run_coacd(coacd.Mesh(vertices, faces), **kwargs)
+        conn.send(("ok", [(np.asarray(v), np.asarray(f)) for v, f in parts]))
+    except BaseException as exc:  # everything is reported to the parent, in one line
+        conn.send(("error", f"{type(exc).__name__}: {exc}"))
+    finally:
+        conn.close()
+
+
+def _in_child(target, *args):
+    """``target(conn, *args)`` in a child process (``spawn``: a fresh interpreter, no JAX
+    threads forked); its answer. CoACD is native code that holds the GIL and ignores
+    SIGINT/SIGTERM for its whole run: here the parent waits, and on Ctrl-C or SIGTERM (the
+    CLI's ``Terminated``) or any error it terminates the child (SIGKILL after
+    :data:`COACD_KILL_AFTER_S`) before re-raising."""
+    ctx = multiprocessing.get_context("spawn")
+    parent, child = ctx.Pipe(duplex=False)
+    proc = ctx.Process(target=target, args=(child, *args), daemon=True)
+    proc.start()
+    child.close()
+    try:
+        try:
+            answer = parent.recv()
+        except EOFError:
+            proc.join()
+            raise UserInputError(
+                f"CoACD ended without a result (its process exited with {proc.exitcode}: "
+                "out of memory or a crash); simplify the mesh or change the CoACD parameters"
+            ) from None
+        proc.join()
+    finally:
+        if proc.is_alive():
+            proc.terminate()
+            proc.join(COACD_KILL_AFTER_S)
+            if proc.is_alive():
+                proc.kill()
+                proc.join()
+        parent.close()
+    return answer
+
+
+def run_coacd(mesh, params: CoacdParams = CoacdParams()) -> list[np.ndarray]:
+    """Convex hulls (list of vertex arrays, metres) of ``mesh`` by CoACD.
+
+    A mesh of more than :data:`COACD_MAX_FACES` faces is refused in one line. CoACD runs in a
+    child process (:func:`_in_child`) that Ctrl-C and SIGTERM end."""
+    trimesh = _cad("trimesh")
+    _cad("coacd")  # a missing extra is named here, not in the child
+
+    n_faces = len(mesh.faces)
+    if n_faces > COACD_MAX_FACES:
+        name = getattr(mesh, "metadata", {}).get("file_name") or "the mesh"
+        raise UserInputError(
+            f"{name} has {n_faces} faces, more than CoACD is given ({COACD_MAX_FACES}): "
+            "simplify it first, e.g. trimesh's mesh.simplify_quadric_decimation(face_count="
+            f"{COACD_MAX_FACES // 2}) or MeshLab's Quadric Edge Collapse Decimation, and export "
+            "it again"
+        )
+    kwargs = dict(
         threshold=params.threshold,
         max_convex_hull=params.max_convex_hull,
         preprocess_mode=params.preprocess_mode,
@@ -141,6 +208,10 @@ def run_coacd(mesh, params: CoacdParams = CoacdParams()) -> list[np.ndarray]:
         max_ch_vertex=params.max_ch_vertex,
         seed=params.seed,
     )
+    verts, faces = np.asarray(mesh.vertices), np.asarray(mesh.faces)
+    status, parts = _in_child(_coacd_child, verts, faces, kwargs)
+    if status != "ok":
+        raise UserInputError(f"CoACD failed: {parts}")
     hulls = []
     for verts, faces in parts:
         hull = trimesh.Trimesh(verts, faces).convex_hull

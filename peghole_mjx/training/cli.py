@@ -12,7 +12,12 @@ from peghole_mjx.envs.engines import CLI_ENGINES, engine_overrides
 from peghole_mjx.envs.mesh_extract import absolute_task
 from peghole_mjx.errors import UserInputError
 from peghole_mjx.lazy import command
-from peghole_mjx.training.config import TRAINING_ENV_DEFAULTS, TrainConfig, load_train_config
+from peghole_mjx.training.config import (
+    MAX_SEEDS,
+    TRAINING_ENV_DEFAULTS,
+    TrainConfig,
+    load_train_config,
+)
 from peghole_mjx.validation import arg, key_value
 
 COMMANDS = "peghole_mjx.training.commands"
@@ -28,10 +33,23 @@ def run_dir(text: str) -> Path:
     return Path(text)
 
 
+def seed_count(text: str) -> int:
+    """``--seeds N``: a whole number in [1, ``MAX_SEEDS``] (a run of more seeds could not be
+    read back: run.json's limit)."""
+    try:
+        n = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"not a whole number: {text!r}") from None
+    if not 1 <= n <= MAX_SEEDS:
+        raise argparse.ArgumentTypeError(f"must be a whole number in [1, {MAX_SEEDS}], got {n}")
+    return n
+
+
 def add_parser(sub: argparse._SubParsersAction) -> None:
     """Add ``train``, ``evaluate`` and ``compare`` to ``sub``."""
     engine_help = (
-        "physics engine: mjx (MuJoCo MJX), mjx-warp (MuJoCo Warp, CUDA), mujoco (MuJoCo C on "
+        "physics engine: mjx (MuJoCo MJX), mjx-warp (MuJoCo Warp: CUDA GPU; a CPU runs one "
+        "world slowly), mujoco (MuJoCo C on "
         "mujoco.batch threads), auto (mujoco where JAX has no GPU, else mjx)"
     )
     t = sub.add_parser(
@@ -58,12 +76,21 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     t.add_argument(
         "--engine",
         choices=CLI_ENGINES,
-        default="auto",
+        default=None,
         help=engine_help + "; recorded in run.json and the policy (env_overrides.engine). "
-        "Default auto",
+        "Default auto; with --resume only the run's own engine",
     )
-    t.add_argument("--profile", choices=("full", "cpu", "quick"), default="full")
-    t.add_argument("--quick", action="store_true", help="same as --profile quick (CPU smoke run)")
+    t.add_argument(
+        "--profile",
+        choices=("full", "cpu", "quick"),
+        default=None,
+        help="hyperparameter profile (default full); with --resume only the run's own",
+    )
+    t.add_argument(
+        "--quick",
+        action="store_true",
+        help="same as --profile quick (CPU smoke run); another --profile is refused",
+    )
     t.add_argument(
         "--out",
         type=run_dir,
@@ -89,7 +116,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     )
     t.add_argument(
         "--seeds",
-        type=int,
+        type=seed_count,
         default=None,
         metavar="N",
         help="train N seeds (seed, seed+1, ...) in one compiled call (make_train vmapped over "
@@ -194,12 +221,34 @@ def train_config_from_args(args: argparse.Namespace) -> TrainConfig:
         raise UserInputError("--env and --out are required (or --resume DIR)")
     cs = None if args.compliance_strategy is None else args.compliance_strategy == "on"
     overrides = absolute_task(dict(args.overrides), "env.task")
-    if "env.engine" not in overrides:  # --set env.engine=... wins over --engine
-        eng = engine_overrides(getattr(args, "engine", None) or "auto")
+    engine = getattr(args, "engine", None)
+    if engine is not None:  # --engine and --set env.engine / env.impl must agree
+        for key, value in engine_overrides(engine).items():
+            if f"env.{key}" in overrides and overrides[f"env.{key}"] != value:
+                raise UserInputError(
+                    f"--engine {engine} and --set env.{key}={overrides[f'env.{key}']} "
+                    "contradict each other: give one of them"
+                )
+    if "env.engine" not in overrides:
+        eng = engine_overrides(engine or "auto")
         overrides = {**{f"env.{k}": v for k, v in eng.items()}, **overrides}
     return load_train_config(
         args.env,
-        profile="quick" if args.quick else args.profile,
+        profile=chosen_profile(args),
         overrides=overrides,
         compliance_strategy=cs,
     )
+
+
+def chosen_profile(args: argparse.Namespace) -> str:
+    """The profile of ``--profile`` and ``--quick`` (default full); ``--quick`` with another
+    ``--profile`` is refused in one line (decided 2026-12-04: contradicting flags are refused,
+    neither wins)."""
+    profile = getattr(args, "profile", None)
+    if getattr(args, "quick", False):
+        if profile not in (None, "quick"):
+            raise UserInputError(
+                f"--quick and --profile {profile} contradict each other: give one of them"
+            )
+        return "quick"
+    return profile or "full"

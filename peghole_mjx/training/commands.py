@@ -4,8 +4,10 @@
 from __future__ import annotations
 
 import argparse
+import contextlib
 import json
 import math
+import os
 import sys
 from pathlib import Path
 
@@ -16,8 +18,8 @@ from peghole_mjx.errors import UserInputError
 from peghole_mjx.lock import LOCK_NAME, RunLock
 from peghole_mjx.policies import load_policy
 from peghole_mjx.training import evaluate as evaluation
-from peghole_mjx.training.cli import train_config_from_args
-from peghole_mjx.training.config import read_run_record
+from peghole_mjx.training.cli import chosen_profile, train_config_from_args
+from peghole_mjx.training.config import env_setting, read_run_record
 from peghole_mjx.training.distributed import initialize
 from peghole_mjx.training.logs import read_metrics
 from peghole_mjx.training.plots import image_format, plot_curves
@@ -74,12 +76,13 @@ def cmd_train(args: argparse.Namespace) -> int:
         if args.env or set(over) - {"num_timesteps"}:
             raise UserInputError(
                 "--resume takes the run's own config: drop --env and --set "
-                "(only --set num_timesteps=N, to extend or end a run, is allowed)"
+                "(only --set num_timesteps=N, to extend a run, is allowed)"
             )
         if not (args.resume / "run.json").exists():
             raise UserInputError(
                 f"--resume: {args.resume / 'run.json'} not found (not a training run directory)"
             )
+        check_resume_flags(args)
         with RunLock(args.resume) as lock:  # before anything of the run is read or written
             fileio.check_out_dir(args.resume, "--resume")
             run = TrainingRun.resume(
@@ -92,17 +95,18 @@ def cmd_train(args: argparse.Namespace) -> int:
             run.stop_at_success = args.stop_at_success
             summary = run.run(resume=True)
     else:
-        cfg = fresh_run_config(args)
-        with RunLock(args.out) as lock:
-            run = TrainingRun(
-                cfg,
-                args.out,
-                progress=progress,
-                render=not args.no_video,
-                stop_at_success=args.stop_at_success,
-            )
-            run.lock = lock
-            summary = run.run(resume=False)
+        with _no_empty_out_left(args.out):
+            cfg = fresh_run_config(args)
+            with RunLock(args.out) as lock:
+                run = TrainingRun(
+                    cfg,
+                    args.out,
+                    progress=progress,
+                    render=not args.no_video,
+                    stop_at_success=args.stop_at_success,
+                )
+                run.lock = lock
+                summary = run.run(resume=False)
     fe = summary["final_eval"]
     untrained = summary["untrained_eval_return"]
     print(
@@ -112,6 +116,65 @@ def cmd_train(args: argparse.Namespace) -> int:
         f"(untrained {_num(untrained, '.2f')}); outputs in {run.out}"
     )
     return 0
+
+
+@contextlib.contextmanager
+def _no_empty_out_left(out: Path | None):
+    """A new run's ``--out`` that did not exist is removed again when the command is refused
+    or fails while the folder is still empty (the checks create it to probe it): a refusal
+    leaves nothing behind. A folder that holds anything is left as it is."""
+    existed = out is None or os.path.lexists(out)
+    try:
+        yield
+    except BaseException:
+        if not existed:
+            with contextlib.suppress(OSError):
+                out.rmdir()  # only an empty folder: never anything the run or the user wrote
+        raise
+
+
+def check_resume_flags(args: argparse.Namespace) -> None:
+    """Refuse (one line naming the flag and the recorded value) ``--engine``,
+    ``--compliance-strategy``, ``--profile``, ``--quick`` or ``--out`` given with ``--resume``
+    when it differs from the run's own (a ``--set num_timesteps=N`` below the run's is
+    refused by :meth:`TrainingRun.resume`, once N is checked).
+
+    Decided 2026-12-04: a flag equal to the run's own value is accepted (it changes nothing,
+    and the command that started a run still resumes it with ``--resume`` added); any other
+    is refused, never silently ignored."""
+    given = (args.engine, args.compliance_strategy, args.profile, args.out)
+    if not args.quick and all(v is None for v in given):
+        return  # nothing to compare: run.json is read under the run's lock
+    _, cfg = read_run_record(args.resume)
+    env, env_over = cfg.env, dict(cfg.env_overrides or {})
+
+    def refuse(flag: str, what: str, recorded) -> None:
+        raise UserInputError(
+            f"--resume takes the run's own config: {flag} differs from the run's {what} "
+            f"{recorded} (drop {flag.split()[0]})"
+        )
+
+    if args.engine is not None:
+        for key, value in engine_overrides(args.engine).items():
+            recorded = env_setting(env, env_over, key)
+            if recorded != value:
+                refuse(f"--engine {args.engine}", key, recorded)
+    if args.compliance_strategy is not None:
+        recorded = bool(env_setting(env, env_over, "compliance_strategy"))
+        if recorded != (args.compliance_strategy == "on"):
+            refuse(
+                f"--compliance-strategy {args.compliance_strategy}",
+                "compliance strategy",
+                "on" if recorded else "off",
+            )
+    if args.quick or args.profile is not None:
+        profile = chosen_profile(args)
+        recorded = cfg.profile
+        if profile != recorded:
+            flag = "--quick" if args.quick else f"--profile {profile}"
+            refuse(flag, "profile", recorded)
+    if args.out is not None and Path(args.out).resolve() != Path(args.resume).resolve():
+        refuse(f"--out {args.out}", "folder", args.resume)
 
 
 def _is_seeds_run(out: Path) -> bool:
@@ -128,13 +191,15 @@ def _train_seeds(args: argparse.Namespace, progress: bool) -> int:
     if args.resume:
         if args.env or args.overrides or args.seeds is not None:
             raise UserInputError("--resume takes the run's own config: drop --env, --set, --seeds")
+        check_resume_flags(args)
         fileio.check_out_dir(args.resume, "--resume")
         run = SeedsRun.resume(args.resume, progress=progress)
         summary = run.run(resume=True)
     else:
-        cfg = fresh_run_config(args)
-        run = SeedsRun(cfg, args.seeds, args.out, progress=progress)
-        summary = run.run(resume=False)
+        with _no_empty_out_left(args.out):
+            cfg = fresh_run_config(args)
+            run = SeedsRun(cfg, args.seeds, args.out, progress=progress)
+            summary = run.run(resume=False)
     over = summary["final_eval_over_seeds"]
     for key in ("success_rate", "mean_fz_N", "mean_fxy_N"):
         ci = over.get(key, {}).get("ci95_t")

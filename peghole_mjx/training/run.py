@@ -43,6 +43,7 @@ atomically (``peghole_mjx.fileio``).
 
 from __future__ import annotations
 
+import contextlib
 import itertools
 import os
 import shutil
@@ -278,8 +279,10 @@ class Run:
             bar.update(per_call)
             if self._at_boundary(step):
                 rows, stop = self._boundary_rows(carry, step, bar)
-                self.log.append(rows, tb)
-                self._save(carry, step)
+                with naming(self.log.path):
+                    self.log.append(rows, tb)
+                with naming(self.ckpt_dir / checkpoints.checkpoint_name(step)):
+                    self._save(carry, step)
                 if stop:
                     print(f"{stop}: stopping at {step} env steps", file=sys.stderr)
                     break
@@ -328,7 +331,8 @@ class TrainingRun(Run):
         render: bool = True,
         num_timesteps: int | None = None,
     ) -> TrainingRun:
-        """The run in ``out`` with its own config; ``num_timesteps`` extends or ends it.
+        """The run in ``out`` with its own config; ``num_timesteps`` extends it (a smaller one
+        than the run's is refused: decided 2026-12-04).
 
         Nothing is written here: the changed ``run.json`` is written by :meth:`run` once the
         new configuration and the checkpoint have been validated.
@@ -339,10 +343,18 @@ class TrainingRun(Run):
         config = dict(meta["config"])
         if num_timesteps is not None:
             n = check("num_timesteps", num_timesteps, "--set num_timesteps")
+            recorded = config.get("num_timesteps")
             config["num_timesteps"] = n
             meta = {**meta, "config": config}
             meta["resumed_with"] = [*meta.get("resumed_with", []), {"num_timesteps": n}]
-        run = cls(TrainConfig.from_dict(config), out, progress, render)
+        cfg = TrainConfig.from_dict(config)  # validated before anything is built
+        if num_timesteps is not None and isinstance(recorded, int) and n < recorded:
+            raise UserInputError(
+                f"--set num_timesteps={n} is below the run's num_timesteps={recorded}: "
+                "--resume only extends a run (run.json and metrics.csv stay as they are); to "
+                "end it sooner, stop it (Ctrl-C) and use its newest checkpoint"
+            )
+        run = cls(cfg, out, progress, render)
         if num_timesteps is not None:
             run._pending_meta = meta
         return run
@@ -538,6 +550,20 @@ class TrainingRun(Run):
         return summary
 
 
+@contextlib.contextmanager
+def naming(path: str | Path):
+    """Give an ``OSError`` raised without a file name (a write or fsync on a full disk:
+    ``[Errno 28] No space left on device``) the name of ``path``, the file or folder being
+    written, so that the one line the CLI prints says which (``PATH: No space left on
+    device``)."""
+    try:
+        yield
+    except OSError as exc:
+        if exc.filename is not None or exc.errno is None:
+            raise
+        raise OSError(exc.errno, exc.strerror or str(exc), str(path)) from exc
+
+
 # ---------------------------------------------------------------------- resources
 def replay_row_bytes(obs_size: int, act_size: int) -> int:
     """Bytes of one replay row: observation, action, reward, discount, next observation and
@@ -558,11 +584,12 @@ def check_resources(env, cfg: TrainConfig, obs_size: int, act_size: int, seeds: 
     replay = seeds * cfg.max_replay_size * row
     batch = seeds * cfg.batch_size * cfg.grad_updates_per_step * row * 2
     runs = f"{seeds} seeds x " if seeds > 1 else ""
+    fewer = "fewer --seeds or " if seeds > 1 else ""  # each seed has its own buffer and worlds
     memory.check_fits(
         2 * replay + batch,
         f"the replay buffer ({runs}max_replay_size={cfg.max_replay_size} rows of {row} B, "
         "held twice during a training call)",
-        "lower --set max_replay_size",
+        f"give {fewer}a lower --set max_replay_size",
     )
     world = memory.world_bytes(env)  # traced, not compiled
     worlds = seeds * (cfg.num_envs + cfg.num_eval_envs) * world * memory.WORLD_COPIES
@@ -571,7 +598,7 @@ def check_resources(env, cfg: TrainConfig, obs_size: int, act_size: int, seeds: 
         f"training ({runs}replay buffer {memory.fmt_bytes(2 * replay)}, batch "
         f"{memory.fmt_bytes(batch)}, {cfg.num_envs} + {cfg.num_eval_envs} eval worlds of "
         f"{world} B: {memory.fmt_bytes(worlds)})",
-        "lower --set num_envs, num_eval_envs, batch_size or max_replay_size",
+        f"give {fewer}a lower --set num_envs, num_eval_envs, batch_size or max_replay_size",
     )
     sizes = [obs_size, *cfg.hidden_layer_sizes, 2 * act_size]
     policy = 4 * sum(a * b + b for a, b in itertools.pairwise(sizes)) + 8 * obs_size + 65536
