@@ -28,6 +28,7 @@ normal force on each hole geom over the episode. ``peghole envs contacts`` runs 
 from __future__ import annotations
 
 import copy
+import weakref
 from collections import Counter
 from collections.abc import Callable
 from dataclasses import dataclass
@@ -301,6 +302,33 @@ class ContactReplay:
         return most
 
 
+#: each env's batched reset and step, jitted once: ``task make`` counts contacts under two
+#: policies, and a fresh ``jax.jit(jax.vmap(...))`` per call compiled the reset and the step
+#: twice (2026-12-04; docs/guide/own_parts.md, time of the contact count)
+_BATCHED: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
+
+
+def batched_reset_step(env: PegHoleEnv) -> tuple[Callable, Callable]:
+    """The batched reset and ``jax.jit(jax.vmap(env.step))``, made once per env (so compiled
+    once per batch shape, whatever the policy). On an engine with host callbacks (``mujoco``)
+    the reset is two graphs, as the rollouts' (``rollout._batch_reset``): ``reset_start``,
+    pure JAX and most of the compile, kept by the persistent compilation cache across
+    processes, then the small ``reset_finish``; the same start states as one graph."""
+    fns = _BATCHED.get(env)
+    if fns is None:
+        if env.engine.host_callbacks:
+            start = jax.jit(jax.vmap(env.reset_start))
+            finish = jax.jit(jax.vmap(env.reset_finish))
+
+            def reset(rngs: jax.Array) -> Any:
+                return finish(start(rngs))
+
+        else:
+            reset = jax.jit(jax.vmap(env.reset))
+        fns = _BATCHED[env] = (reset, jax.jit(jax.vmap(env.step)))
+    return fns
+
+
 def max_active_contacts(
     env: PegHoleEnv,
     act: Callable[[jax.Array, jax.Array], jax.Array],
@@ -313,7 +341,7 @@ def max_active_contacts(
     ``act(obs, rng) -> action``; a finished world restarts from its start state. Counted by
     :class:`ContactReplay`. Returns the maximum, the episodes that ended and the env steps
     run."""
-    reset, step = jax.jit(jax.vmap(env.reset)), jax.jit(jax.vmap(env.step))
+    reset, step = batched_reset_step(env)
     act_v = jax.jit(jax.vmap(act))
     state = start = reset(jax.random.split(jax.random.PRNGKey(seed), worlds))
     key = jax.random.PRNGKey(seed + 1)

@@ -1,9 +1,11 @@
 """Making a task folder: meshes -> convex pieces -> checks -> contact cap -> folder.
 
 ``peghole task make PEG HOLE`` (a user's meshes: a part that is an extrusion along +z cut
-into its exact convex pieces, :mod:`peghole_mjx.geometry.extrusion`, any other decomposed by
-CoACD) and ``peghole task builtin NAME`` (the built-in parts of
-:mod:`peghole_mjx.geometry.shapes`, exact pieces) run one pipeline, :func:`build_task`:
+into its exact convex pieces, :mod:`peghole_mjx.geometry.extrusion`; a round pair whose exact
+pieces exceed the cap, or a tapered one, as N-gons with N set by the clearance,
+:mod:`peghole_mjx.geometry.revolve`; any other decomposed by CoACD) and ``peghole task builtin
+NAME`` (the built-in parts of :mod:`peghole_mjx.geometry.shapes`, exact pieces) run one
+pipeline, :func:`build_task`:
 
 1. the output folder checked (a new folder, or a task folder to replace that holds only the
    program's files: :func:`peghole_mjx.fileio.check_replaceable`) before any work;
@@ -53,6 +55,7 @@ from peghole_mjx.geometry.decompose import (
 )
 from peghole_mjx.geometry.extrusion import exact_pieces
 from peghole_mjx.geometry.mjcf import build_scene
+from peghole_mjx.geometry.revolve import revolved_pair
 from peghole_mjx.geometry.shapes import builtin_parts
 from peghole_mjx.geometry.task_check import TaskGeometry, check_blind_hole, place_and_check
 from peghole_mjx.provenance import provenance
@@ -391,12 +394,18 @@ COACD = "CoACD"
 
 
 def _part_pieces(
-    label: str, mesh, params: CoacdParams, pieces: str, progress: bool, max_hulls: int
+    label: str,
+    mesh,
+    params: CoacdParams,
+    pieces: str,
+    progress: bool,
+    max_hulls: int,
+    exact=None,
 ) -> tuple[list, dict[str, Any]]:
     """One part's convex pieces and the record of how they were made (``task.json``'s
-    ``source.decomposition``)."""
+    ``source.decomposition``); ``exact``: :func:`exact_pieces` of ``mesh`` if already made."""
     if pieces != "coacd":
-        exact = exact_pieces(mesh)
+        exact = exact_pieces(mesh) if exact is None else exact
         if not isinstance(exact, str):
             if len(exact.hulls) > max_hulls:
                 raise UserInputError(
@@ -436,8 +445,10 @@ def make_task(
     """``peghole task make``: a user's peg and hole meshes (assembled pose, +z extraction)
     decomposed, then :func:`build_task`. ``pieces`` (:data:`PIECES`): ``auto`` takes the
     exact pieces of a part that is an extrusion along +z
-    (:mod:`peghole_mjx.geometry.extrusion`) and CoACD's for any other part; ``exact``
-    refuses a part that is not an extrusion; ``coacd`` runs CoACD on both."""
+    (:mod:`peghole_mjx.geometry.extrusion`); when those do not fit the cap (or a part is no
+    extrusion) and both parts are revolved about +z, their N-gon pieces
+    (:func:`~peghole_mjx.geometry.revolve.revolved_pair`); CoACD's for any other part;
+    ``exact`` refuses a part that is not an extrusion; ``coacd`` runs CoACD on both."""
     t0 = time.perf_counter()
     params = params or CoacdParams()
     if pieces not in PIECES:
@@ -448,10 +459,25 @@ def make_task(
     check_assembly(peg, hole, units)  # before the decomposition
     check_blind_hole(peg, hole)
     hulls, records = {}, {}
-    for label, mesh in (("peg", peg), ("hole", hole)):
-        hulls[label], records[label] = _part_pieces(
-            label, mesh, params, pieces, progress, caps.max_hulls
-        )
+    meshes = {"peg": peg, "hole": hole}
+    exact_made = {k: exact_pieces(m) for k, m in meshes.items()} if pieces != "coacd" else {}
+    revolved = None
+    fits = all(
+        not isinstance(e, str) and len(e.hulls) <= caps.max_hulls for e in exact_made.values()
+    )
+    if pieces == "auto" and not fits:
+        # round parts (a fine M-gon export, a cone): N-gons sized by the clearance (2026-12-04)
+        revolved = revolved_pair(peg, hole, estimate_radial_clearance_mm(peg, hole), caps.max_hulls)
+    if revolved is not None and not isinstance(revolved, str):
+        hulls = {"peg": revolved.peg_hulls, "hole": revolved.hole_hulls}
+        records = revolved.records
+    else:
+        for label, mesh in meshes.items():
+            hulls[label], records[label] = _part_pieces(
+                label, mesh, params, pieces, progress, caps.max_hulls, exact_made.get(label)
+            )
+            if revolved is not None:
+                records[label]["not_revolved"] = revolved
     methods = {r["method"] for r in records.values()}
     source = {
         "kind": "meshes",
