@@ -266,11 +266,15 @@ class DemoState:
                 _remove(out / n)
             return cls(out, {})
         if not state_file.exists():
-            if present:
+            if present and _is_demo_report(out / "report.md"):
                 raise UserInputError(
-                    f"{out} holds {', '.join(present)} but no {DEMO_STATE} (an older demo, or "
-                    "other files): pass --force to delete them and start afresh, or choose "
-                    "another --out"
+                    f"{out} holds {', '.join(present)} but no {DEMO_STATE} (an older demo): "
+                    "pass --force to delete them and start afresh, or choose another --out"
+                )
+            if present:  # --force would refuse it too (not a demo's folder): no such advice
+                raise UserInputError(
+                    f"{out} holds {', '.join(present)} but no {DEMO_STATE} or demo report: "
+                    "not a demo's folder, nothing was changed; choose another --out"
                 )
             return cls(out, {})
         data = load_json_object(

@@ -18,6 +18,7 @@ line naming those files (:func:`foreign_files`), and nothing is deleted.
 from __future__ import annotations
 
 import contextlib
+import errno
 import hashlib
 import json
 import os
@@ -58,11 +59,68 @@ def _tmp_name(path: Path) -> Path:
     return path.with_name(f".{path.name}.{os.getpid()}.tmp")
 
 
+#: the most bytes a temporary name beside an output adds to its name: ``.NAME.tmp-XXXXXXXX``
+#: and ``.NAME.old-XXXXXXXX`` (:func:`temp_dir_beside`) add 14, ``.NAME.PID.tmp``
+#: (:func:`atomic_open`, a PID of up to 7 digits) 13, a lock ``.NAME.lock`` 6
+TEMP_NAME_EXTRA = 14
+
+
+def check_no_link_loop(path: str | Path, what: str = "--out") -> None:
+    """Refuse (one line) a ``path`` that is, or lies under, a symbolic link loop (a
+    RuntimeError or ELOOP traceback otherwise)."""
+    try:
+        os.stat(path)
+    except OSError as exc:
+        if exc.errno == errno.ELOOP:
+            raise UserInputError(
+                f"{_named(what, path)} is a symbolic link loop: nothing can be written there; "
+                "give another path"
+            ) from None
+
+
+def real_path(path: str | Path, what: str = "--out") -> Path:
+    """``path`` with every symbolic link resolved (a link is written through, never replaced
+    by a file); a link loop is refused in one line."""
+    check_no_link_loop(path, what)
+    try:
+        return Path(os.path.realpath(path))
+    except (OSError, RuntimeError):
+        raise UserInputError(f"{_named(what, path)} is a symbolic link loop") from None
+
+
+def _named(what: str, path: str | Path) -> str:
+    return f"{what} {path}" if what else str(path)
+
+
+def check_name_length(path: str | Path, what: str = "--out") -> None:
+    """Refuse (one line) an output name that fits the file system but not with the temporary
+    names written beside it (:data:`TEMP_NAME_EXTRA` bytes more): such a name would fail only
+    after the work, at its first temporary write."""
+    name = Path(os.path.abspath(path)).name
+    n = len(os.fsencode(name))
+    parent = Path(os.path.abspath(path)).parent
+    while not parent.exists() and parent != parent.parent:
+        parent = parent.parent
+    try:
+        limit = os.pathconf(parent, "PC_NAME_MAX")
+    except (OSError, ValueError):
+        limit = 255
+    if n + TEMP_NAME_EXTRA > limit:
+        raise UserInputError(
+            f"{what} {path}: the name is {n} bytes; the temporary names written beside it "
+            f"(.NAME.tmp-XXXXXXXX) add {TEMP_NAME_EXTRA}, more than the {limit} this file "
+            f"system allows: choose a name of at most {limit - TEMP_NAME_EXTRA} bytes"
+        )
+
+
 @contextlib.contextmanager
 def atomic_open(path: str | Path, mode: str = "w", sync_dir: bool = True) -> Iterator[IO]:
     """Open a temporary file beside ``path``; on success flush, fsync and rename it onto
-    ``path``; on any error remove it and leave ``path`` untouched."""
+    ``path``; on any error remove it and leave ``path`` untouched. A ``path`` that is a
+    symbolic link is written through (its target replaced, the link kept)."""
     path = Path(path)
+    if os.path.islink(path):
+        path = real_path(path, "")
     tmp = _tmp_name(path)
     try:
         with open(tmp, mode, **({} if "b" in mode else {"newline": ""})) as f:
@@ -95,6 +153,7 @@ def write_bytes_with(path: str | Path, writer: Callable[[IO[bytes]], None]) -> P
 def write_many(files: dict[Path, str]) -> None:
     """Write every file or none: all are written to temporary names first, then renamed."""
     tmps: list[tuple[Path, Path]] = []
+    files = {real_path(p, "") if os.path.islink(p) else p: t for p, t in files.items()}
     try:
         for path, text in files.items():
             tmp = _tmp_name(path)
@@ -153,13 +212,29 @@ def owned_files(folder: str | Path) -> set[str] | None:
     return set(files)
 
 
-def write_owner_manifest(folder: str | Path, files: Iterable[str] | None = None) -> None:
+def write_owner_manifest(
+    folder: str | Path, files: Iterable[str] | None = None, hashed: Iterable[str] = ()
+) -> None:
     """Record in ``folder`` the files the program wrote there (default: every file now in
-    it)."""
+    it), and the SHA-256 of those named in ``hashed`` (:func:`recorded_sha256`)."""
     folder = Path(folder)
     names = sorted(set(_files_under(folder) if files is None else files) - {OWNER_MANIFEST})
-    text = json.dumps({"written_by": "peghole_mjx", "files": names}, indent=1) + "\n"
-    write_text(folder / OWNER_MANIFEST, text)
+    doc: dict = {"written_by": "peghole_mjx", "files": names}
+    hashes = {n: sha256_file(folder / n) for n in sorted(hashed) if (folder / n).is_file()}
+    if hashes:
+        doc["sha256"] = hashes
+    write_text(folder / OWNER_MANIFEST, json.dumps(doc, indent=1) + "\n")
+
+
+def recorded_sha256(folder: str | Path, name: str) -> str | None:
+    """The SHA-256 :data:`OWNER_MANIFEST` of ``folder`` records for its file ``name``, or
+    None (no manifest, or one written without hashes: before 2026-12-04)."""
+    try:
+        rec = json.loads((Path(folder) / OWNER_MANIFEST).read_text()).get("sha256", {})
+        sha = rec.get(name) if isinstance(rec, dict) else None
+    except (OSError, ValueError, AttributeError, RecursionError):
+        return None
+    return sha if isinstance(sha, str) else None
 
 
 def foreign_files(folder: str | Path, known: Iterable[str] = ()) -> list[str]:
@@ -209,18 +284,20 @@ def replace_dir(
     final: Path,
     known: Iterable[str] | None = None,
     owned: Iterable[str] | None = None,
+    hashed: Iterable[str] = (),
 ) -> None:
     """Move a completely written folder ``tmp`` (made by :func:`temp_dir_beside`) onto
     ``final``, replacing an old one only when every file in it is the program's.
 
-    ``tmp`` gets an :data:`OWNER_MANIFEST` of ``owned`` (default: every file in it). An
+    ``tmp`` gets an :data:`OWNER_MANIFEST` of ``owned`` (default: every file in it; with
+    the SHA-256 of the files named in ``hashed``). An
     existing ``final`` with a file the program cannot prove it wrote (:func:`foreign_files`;
     ``known`` default: the names in ``tmp``) is refused in one line: ``tmp`` is removed and
     ``final`` left as it was. Otherwise ``final`` is renamed to a unique name beside it,
     ``tmp`` renamed onto ``final``, and the old folder removed."""
     tmp, final = Path(tmp), Path(final)
     names = {p.name for p in tmp.iterdir()}
-    write_owner_manifest(tmp, owned)
+    write_owner_manifest(tmp, owned, hashed)
     for f in tmp.iterdir():
         if f.is_file() and not f.is_symlink():
             with open(f, "rb") as fh:
@@ -244,9 +321,14 @@ def replace_dir(
         shutil.rmtree(old, ignore_errors=True)
 
 
-def check_out_dir(path: str | Path, what: str = "--out") -> Path:
-    """``path`` is, or can be made, a writable folder (created here); else UserInputError."""
+def check_out_dir(path: str | Path, what: str = "--out", beside: bool = True) -> Path:
+    """``path`` is, or can be made, a writable folder (created here); else UserInputError.
+    ``beside``: temporary names are written beside it (its name is checked against them,
+    :func:`check_name_length`)."""
     path = Path(path)
+    check_no_link_loop(path, what)
+    if beside and path.name:
+        check_name_length(path, what)
     if path.exists() and not path.is_dir():
         raise UserInputError(f"{what} {path} is an existing file, not a folder")
     try:
@@ -304,9 +386,12 @@ def _mib(n: float) -> str:
 def check_out_file(path: str | Path, what: str = "--out") -> Path:
     """``path`` can be written as a file (its folder created here); else UserInputError."""
     path = Path(path)
+    check_no_link_loop(path, what)
     if path.is_dir():
         raise UserInputError(f"{what} {path} is a folder, not a file")
+    check_name_length(path, what)
     if path.exists() and not os.access(path, os.W_OK):
         raise UserInputError(f"{what} {path}: the file is not writable")
-    check_out_dir(path.parent if str(path.parent) else Path("."), what=f"{what} {path}: folder")
+    folder = path.parent if str(path.parent) else Path(".")
+    check_out_dir(folder, what=f"{what} {path}: folder", beside=False)
     return path

@@ -12,6 +12,11 @@ kill -9, a crash, a reboot) is stale: on the same host it is detected (no such P
 now belongs to a process started later) and taken over with a warning. A lock held from
 another host cannot be checked from here: the message says which host, and to delete the
 file if that run is known to be over.
+
+:class:`OutputLock` (decided 2026-12-04) is the same lock for any output a command writes (a
+folder written whole, a result file): ``PARENT/.NAME.lock`` beside it, taken before the work
+and held until the output is in place, so that a second writer of the same output is refused
+in one line naming the holder (PID, host, command) instead of both reporting success.
 """
 
 from __future__ import annotations
@@ -27,6 +32,8 @@ from pathlib import Path
 from peghole_mjx.errors import UserInputError
 
 LOCK_NAME = "run.lock"
+#: the lock of a folder written into (:class:`OutputLock` with ``inside``)
+OUTPUT_LOCK = ".peghole_output.lock"
 
 
 def _proc_start(pid: int) -> str | None:
@@ -55,9 +62,11 @@ class RunLockedError(UserInputError):
 class RunLock:
     """The lock of the run in ``out`` (a context manager; :meth:`acquire` / :meth:`release`)."""
 
-    def __init__(self, out: str | Path):
+    def __init__(self, out: str | Path, command: str = "peghole train"):
         self.out = Path(out)
+        self.folder = self.out  # where the lock file lives
         self.path = self.out / LOCK_NAME
+        self.command = command
         self.held = False
 
     def _record(self) -> dict:
@@ -66,7 +75,16 @@ class RunLock:
             "host": socket.gethostname(),
             "start": _proc_start(os.getpid()),
             "since": time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime()),
+            "command": self.command,
         }
+
+    def _in_use(self, rec: dict) -> str:
+        cmd = f"{rec['command']}, " if isinstance(rec.get("command"), str) else ""
+        return (
+            f"{self.out} is in use by another peghole process ({cmd}pid {rec['pid']} on "
+            f"{rec.get('host', '?')}, since {rec.get('since', '?')}): wait for it to "
+            f"end, or delete {self.path} if that run is known to be over"
+        )
 
     def holder(self) -> dict | None:
         """The lock's record, ``{}`` if unreadable (garbled), None if there is no lock."""
@@ -89,8 +107,14 @@ class RunLock:
         return rec.get("start") is not None and start is not None and start != rec["start"]
 
     def acquire(self) -> RunLock:
-        self.out.mkdir(parents=True, exist_ok=True)
-        tmp = self.out / f".{LOCK_NAME}.{os.getpid()}"
+        try:
+            self.folder.mkdir(parents=True, exist_ok=True)
+        except OSError as exc:
+            raise UserInputError(
+                f"cannot create the folder {self.folder} of the lock of {self.out} "
+                f"({exc.strerror or exc})"
+            ) from None
+        tmp = self.folder / f".{self.path.name}.{os.getpid()}"
         try:
             self._write_record(tmp)
             for _ in range(3):
@@ -106,11 +130,7 @@ class RunLock:
                 if rec.get("pid") == os.getpid() and rec.get("host") == socket.gethostname():
                     raise RunLockedError(f"{self.out} is already locked by this process")
                 if not self._is_stale(rec):
-                    raise RunLockedError(
-                        f"{self.out} is in use by another peghole process (pid {rec['pid']} on "
-                        f"{rec.get('host', '?')}, since {rec.get('since', '?')}): wait for it to "
-                        f"end, or delete {self.path} if that run is known to be over"
-                    )
+                    raise RunLockedError(self._in_use(rec))
                 print(
                     f"warning: removing the stale lock of {self.out} (pid {rec.get('pid', '?')} "
                     "is gone)",
@@ -134,8 +154,7 @@ class RunLock:
                 os.fsync(f.fileno())
         except OSError as exc:
             raise UserInputError(
-                f"cannot write the lock file {self.path} of the run in {self.out} "
-                f"({exc.strerror or exc})"
+                f"cannot write the lock file {self.path} of {self.out} ({exc.strerror or exc})"
             ) from None
 
     def release(self) -> None:
@@ -152,3 +171,26 @@ class RunLock:
 
     def __exit__(self, *exc) -> None:
         self.release()
+
+
+class OutputLock(RunLock):
+    """One writer per output: the lock of the folder or file ``target``, a file
+    ``.NAME.lock`` beside it (``target``'s links resolved, so two names of one output share
+    it); ``inside``: a folder written into rather than replaced keeps it inside,
+    ``.peghole_output.lock``. ``what`` names the option in the refusal (``--out``),
+    ``command`` the holder."""
+
+    def __init__(self, target: str | Path, command: str, what: str = "--out", inside: bool = False):
+        super().__init__(target, command)
+        self.what = what
+        real = Path(os.path.realpath(os.path.abspath(target)))
+        self.folder = real if inside else real.parent
+        self.path = real / OUTPUT_LOCK if inside else real.parent / f".{real.name}.lock"
+
+    def _in_use(self, rec: dict) -> str:
+        cmd = rec["command"] if isinstance(rec.get("command"), str) else "a peghole command"
+        return (
+            f"{self.what} {self.out} is being written by another process ({cmd}, pid "
+            f"{rec['pid']} on {rec.get('host', '?')}, since {rec.get('since', '?')}): nothing "
+            f"was written; wait for it to end, or delete {self.path} if it is known to be over"
+        )

@@ -11,6 +11,7 @@ import numpy as np
 import pytest
 
 from peghole_mjx.cli import main
+from peghole_mjx.errors import UserInputError
 from peghole_mjx.experiments import compliance as cx
 from peghole_mjx.experiments import contact_check as cc
 from peghole_mjx.experiments import sweep
@@ -189,10 +190,13 @@ def test_tiny_sweep_resumes_from_its_parts(tiny_sweep, monkeypatch):
     monkeypatch.setattr(cx.Extraction, "run", no_physics)
     again = sweep.run_sweep(cfg, out, progress=False)
     assert again["cells"] == res["cells"]
-    # another seed is another sweep: its slices are not taken from this one
+    # another seed is another sweep: refused into these results without force, and with
+    # force its slices are not taken from this one
     other = dataclasses.replace(cfg, seed=1)
-    with pytest.raises(AssertionError, match="recomputed"):
+    with pytest.raises(UserInputError, match="seed"):
         sweep.run_sweep(other, out, progress=False)
+    with pytest.raises(AssertionError, match="recomputed"):
+        sweep.run_sweep(other, out, progress=False, force=True)
 
 
 def test_widening_a_grid_reuses_the_slices_already_run(tiny_sweep):

@@ -91,6 +91,12 @@ def add_parser(subparsers) -> None:
     )
     w.add_argument("--engine", default="mjx", help=ENGINE_HELP)
     w.add_argument("--out", required=True, type=Path, help="output folder (resumable)")
+    w.add_argument(
+        "--force",
+        action="store_true",
+        help="replace the results of a sweep of other parameters in --out (without it such "
+        "a sweep is refused; a rerun of the same parameters resumes)",
+    )
     w.set_defaults(func=command(f"{COMMANDS}:run_sweep"))
 
     k = sub.add_parser(

@@ -4,6 +4,7 @@ parsers: :mod:`peghole_mjx.experiments.cli`)."""
 from __future__ import annotations
 
 import argparse
+import contextlib
 import dataclasses
 import json
 import sys
@@ -20,6 +21,7 @@ from peghole_mjx.experiments import outputs, report, sweep
 from peghole_mjx.experiments.compliance import ExperimentConfig
 from peghole_mjx.geometry.parts import resolve_representation
 from peghole_mjx.geometry.specs import PRESETS
+from peghole_mjx.lock import OutputLock
 from peghole_mjx.provenance import provenance
 from peghole_mjx.validation import load_json_object
 
@@ -40,7 +42,11 @@ def run(args: argparse.Namespace) -> int:
         cfg = dataclasses.replace(cfg, presets=names)
     if args.repeats is not None:
         cfg = dataclasses.replace(cfg, repeats=args.repeats)
-    summary, files = report.run_experiment(cfg, args.out)
+    fileio.check_out_dir(args.out, "--out")
+    # one writer per output (2026-12-04): a second compliance run into --out is refused
+    command = f"peghole experiment compliance --geometry {args.geometry}"
+    with OutputLock(args.out, command, inside=True):
+        summary, files = report.run_experiment(cfg, args.out)
     for f in files:
         print(f)
     for preset, pk in summary["peak_force_N"].items():
@@ -108,7 +114,7 @@ def run_sweep(args: argparse.Namespace) -> int:
     cfg = sweep.SweepConfig(
         grid=grid, seed=args.seed, batch_worlds=args.batch_worlds, experiment=exp, x64=args.x64
     )
-    result = sweep.run_sweep(cfg, args.out)
+    result = sweep.run_sweep(cfg, args.out, force=getattr(args, "force", False))
     for f in sweep.write_figures(result, args.out):
         print(f)
     print(sweep.summary_table(result))
@@ -191,9 +197,17 @@ def run_contact_check(args: argparse.Namespace) -> int:
         raise UserInputError(f"--out {args.out} is a folder; give a JSON file path")
     if args.append and args.out is None:
         raise UserInputError("--append needs --out")
+    with contextlib.ExitStack() as stack:
+        if args.out is not None:
+            fileio.check_out_file(args.out)
+            # one writer per output (2026-12-04): two contact checks into one file
+            stack.enter_context(OutputLock(args.out, "peghole experiment contact-check"))
+        return _contact_check(args, presets, names)
+
+
+def _contact_check(args: argparse.Namespace, presets: list[str], names: list[str]) -> int:
     old = []
     if args.out is not None:
-        fileio.check_out_file(args.out)
         if args.append and args.out.exists():
             old = read_contact_runs(args.out)
         old_bytes = args.out.stat().st_size if args.out.exists() else 0

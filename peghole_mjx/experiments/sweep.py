@@ -47,7 +47,7 @@ from peghole_mjx.errors import UserInputError
 from peghole_mjx.experiments import compliance as cx
 from peghole_mjx.experiments import outputs
 from peghole_mjx.geometry.specs import MM, PRESETS
-from peghole_mjx.lock import _alive, _proc_start
+from peghole_mjx.lock import OutputLock, _alive, _proc_start
 from peghole_mjx.provenance import provenance
 from peghole_mjx.validation import RANGES, _num
 
@@ -345,7 +345,76 @@ def output_bytes(cfg: SweepConfig) -> int:
     return 2 * 2**20 + worlds * (8 * bins + 2 * 2**10) + cells * (3 * 12 * bins + 16 * 2**10)
 
 
-def run_sweep(cfg: SweepConfig, out: Path, progress: bool = True) -> dict:
+def settings_path(out: Path, geometry: str) -> Path:
+    """The record of the parameters of the ``geometry`` sweep in ``out`` (written at its
+    start: what a rerun must match to resume)."""
+    return Path(out) / f".compliance_sweep_{geometry}.settings.json"
+
+
+def _differences(a, b, prefix: str = "") -> list[str]:
+    """The keys (dotted) whose values differ between two JSON trees."""
+    if isinstance(a, dict) and isinstance(b, dict):
+        out = []
+        for k in sorted(set(a) | set(b), key=str):
+            out += _differences(a.get(k), b.get(k), f"{prefix}{k}.")
+        return out
+    return [] if a == b else [prefix.rstrip(".") or "settings"]
+
+
+def _recorded_settings(out: Path, geometry: str) -> tuple[dict | None, dict]:
+    """``(settings, holder)`` recorded for the sweep in ``out``: its settings record, else the
+    ``settings`` of its results (written before 2026-12-04); ``(None, {})`` if neither."""
+    for path, key in (
+        (settings_path(out, geometry), "settings"),
+        (Path(out) / f"compliance_sweep_{geometry}.json", "settings"),
+    ):
+        try:
+            doc = json.loads(path.read_text())
+        except (OSError, ValueError, RecursionError):
+            continue
+        if isinstance(doc, dict) and isinstance(doc.get(key), dict):
+            holder = doc.get("written_by")
+            return doc[key], holder if isinstance(holder, dict) else {}
+    return None, {}
+
+
+def check_settings(cfg: SweepConfig, out: Path, force: bool, record: bool = True) -> None:
+    """One set of parameters per sweep output (decided 2026-12-04): a sweep into ``out`` whose
+    parameters differ from those recorded there is refused in one line naming the first
+    differences (a rerun with the same ones resumes; ``force`` replaces the record, and at
+    the end the results). ``record``: write this sweep's parameters as the record."""
+    geometry = cfg.grid.geometry
+    mine = json.loads(json.dumps(clean_json(cfg.settings())))
+    recorded, holder = _recorded_settings(out, geometry)
+    if recorded is not None and recorded != mine and not force:
+        diff = _differences(mine, recorded)
+        by = f" by pid {holder['pid']} on {holder.get('host', '?')}" if "pid" in holder else ""
+        raise UserInputError(
+            f"--out {out} holds a {geometry} sweep of other parameters (recorded{by}; "
+            f"differing: {fileio.describe_files(diff, 4)}): nothing was run; rerun with the same "
+            "parameters to resume it, give another --out, or pass --force to replace its results"
+        )
+    if record and (recorded != mine or force):
+        doc = {
+            "settings": mine,
+            "written_by": {
+                "pid": os.getpid(),
+                "host": socket.gethostname(),
+                "since": time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime()),
+                "command": "peghole experiment sweep",
+            },
+        }
+        fileio.write_text(settings_path(out, geometry), json.dumps(doc, indent=1) + "\n")
+
+
+def _lock(out: Path, geometry: str) -> OutputLock:
+    return OutputLock(
+        Path(out) / f"compliance_sweep_{geometry}.json",
+        f"peghole experiment sweep --geometry {geometry}",
+    )
+
+
+def run_sweep(cfg: SweepConfig, out: Path, progress: bool = True, force: bool = False) -> dict:
     """Run (or resume) the sweep into ``out``; returns the result dict (also written as
     ``out/compliance_sweep_<geometry>.json`` and ``.csv``).
 
@@ -354,7 +423,10 @@ def run_sweep(cfg: SweepConfig, out: Path, progress: bool = True) -> dict:
     ``*.damaged``) and recomputed; a slice claimed by a live process is waited for (at most
     :data:`CLAIM_WAIT_S`, with a notice naming the holder). A sweep whose every world went NaN
     raises :class:`~peghole_mjx.experiments.compliance.DivergedError` instead of writing a
-    result."""
+    result. Parameters that differ from those recorded in ``out`` are refused unless ``force``
+    (:func:`check_settings`); processes of the same parameters share the folder (slice
+    claims), and the results are written under the output's lock
+    (:class:`~peghole_mjx.lock.OutputLock`)."""
     grid = cfg.grid.check()
     geometry = grid.geometry
     exp = dataclasses.replace(cfg.experiment, geometry=geometry)
@@ -364,6 +436,8 @@ def run_sweep(cfg: SweepConfig, out: Path, progress: bool = True) -> dict:
     check_value("speed_mm_s", exp.speed_m_s * 1e3, "--speed-mm-s", "mm/s")
     out = outputs.check_out(out, output_bytes(cfg))
     fileio.check_out_dir(out / "parts", "--out")
+    with _lock(out, geometry):
+        check_settings(cfg, out, force)
     cells = grid.cells()
     t0 = time.time()
     # group the cells by (preset, mu): one compiled scene each
@@ -442,7 +516,10 @@ def run_sweep(cfg: SweepConfig, out: Path, progress: bool = True) -> dict:
         "runtime_s": round(time.time() - t0, 1),
         **provenance(),
     }
-    write_results(result, out)
+    with _lock(out, geometry):
+        # a sweep of other parameters started with --force meanwhile owns the output now
+        check_settings(cfg, out, force=False, record=False)
+        write_results(result, out)
     return result
 
 

@@ -29,6 +29,7 @@ from __future__ import annotations
 
 import functools
 import json
+import re
 import shutil
 import zipfile
 from dataclasses import dataclass, field
@@ -42,7 +43,7 @@ from brax.training.acme import running_statistics, specs
 from brax.training.agents.sac import networks as sac_networks
 
 from peghole_mjx import envs, fileio
-from peghole_mjx.checkpoint_folders import newest_policy_checkpoint
+from peghole_mjx.checkpoint_folders import MANIFEST, checkpoint_name, newest_policy_checkpoint
 from peghole_mjx.errors import CorruptFileError, UserInputError
 from peghole_mjx.treenames import differences, named_leaves
 from peghole_mjx.validation import MAX_HIDDEN_LAYERS, RANGES, loads
@@ -191,8 +192,68 @@ def save_policy(path: str | Path, params, meta: dict[str, Any], atomic: bool = T
             shutil.rmtree(target, ignore_errors=True)
         raise
     if atomic:
-        fileio.replace_dir(target, path, known=POLICY_FOLDER_FILES)
+        # params.npz's SHA-256 recorded (2026-12-04): check_recorded_params
+        fileio.replace_dir(target, path, known=POLICY_FOLDER_FILES, hashed=("params.npz",))
     return path
+
+
+def _final_policy_record(path: Path) -> tuple[Path, str, Path] | None:
+    """``(checkpoint params.npz, its recorded SHA-256, the manifest)`` of the checkpoint of
+    a training run at the step of its final policy ``path`` (``RUN/final_policy`` or
+    ``RUN/seed_K/final_policy``), or None when the run has none."""
+    if path.name != "final_policy":
+        return None
+    run, sub = path.parent, "params.npz"
+    if re.fullmatch(r"seed_\d+", run.name) and not (run / "checkpoints").is_dir():
+        run, sub = run.parent, f"{run.name}/params.npz"
+    try:
+        step = json.loads((path / "policy.json").read_text())["env_steps"]
+        manifest = run / "checkpoints" / checkpoint_name(int(step)) / MANIFEST
+        sha = json.loads(manifest.read_text())["files"][sub]["sha256"]
+    except (OSError, ValueError, KeyError, TypeError, RecursionError):
+        return None
+    return (manifest.parent / sub, sha, manifest) if isinstance(sha, str) else None
+
+
+def _same_arrays(a: Path, b: Path) -> bool:
+    """The two ``params.npz`` hold the same arrays (two writes of the same arrays differ in
+    their zip timestamps)."""
+    try:
+        with np.load(a, allow_pickle=False) as za, np.load(b, allow_pickle=False) as zb:
+            return set(za.files) == set(zb.files) and all(
+                np.array_equal(za[k], zb[k]) for k in za.files
+            )
+    except (OSError, ValueError, EOFError, zipfile.BadZipFile):
+        return False
+
+
+def check_recorded_params(path: str | Path) -> None:
+    """Refuse (:class:`CorruptFileError`, one line naming the file) a policy folder whose
+    ``params.npz`` is not the file recorded when it was written (decided 2026-12-04): its
+    SHA-256 against the folder's :data:`~peghole_mjx.fileio.OWNER_MANIFEST` (written by
+    :func:`save_policy`), else, for a training run's ``final_policy``, against the manifest
+    of the run's checkpoint at the same step (there the arrays are compared when the bytes
+    differ). A folder with neither record is not checked."""
+    path = Path(path)
+    params = path / "params.npz"
+    if not params.is_file():
+        return  # loading names it
+    actual = fileio.sha256_file(params)
+    recorded = fileio.recorded_sha256(path, "params.npz")
+    where = f"{path / fileio.OWNER_MANIFEST}"
+    if recorded is None:
+        found = _final_policy_record(path)
+        if found is None:
+            return
+        ckpt_params, recorded, manifest = found
+        if actual == recorded or (ckpt_params.is_file() and _same_arrays(params, ckpt_params)):
+            return
+        where = f"{manifest} (the run's checkpoint at the same step)"
+    if actual != recorded:
+        raise CorruptFileError(
+            f"{params} was changed after it was written: its SHA-256 is {actual[:16]}..., "
+            f"{where} records {recorded[:16]}...; restore it, or export/retrain the policy"
+        )
 
 
 def _json_default(x):
@@ -465,6 +526,7 @@ __all__ = [
     "check_arrays",
     "check_as_trained",
     "check_meta",
+    "check_recorded_params",
     "init_params",
     "load_policy",
     "make_networks",

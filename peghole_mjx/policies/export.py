@@ -69,6 +69,7 @@ from peghole_mjx.envs.rollout import episode_keys, make_runner, rollout
 from peghole_mjx.errors import UserInputError
 from peghole_mjx.geometry.mjcf import TOOL_DOWN_MAT
 from peghole_mjx.geometry.specs import MM
+from peghole_mjx.lock import OutputLock
 from peghole_mjx.policies import (
     PolicyBundle,
     check_meta,
@@ -395,7 +396,10 @@ def check_out(out: Path, force: bool) -> None:
     non-empty folder without ``force``, with ``force`` a non-empty folder that is not an
     earlier export or that holds files the program did not write (named; ``--force``
     replaces only the program's own files, :func:`peghole_mjx.fileio.foreign_files`), an
-    unwritable parent."""
+    unwritable parent, a symbolic link loop, a name too long for the temporary names beside
+    it."""
+    fileio.check_no_link_loop(out, "--out")
+    fileio.check_name_length(out, "--out")
     if out.exists() and not out.is_dir():
         raise UserInputError(f"--out {out} is an existing file, not a folder")
     if out.is_dir() and any(out.iterdir()):
@@ -416,7 +420,7 @@ def check_out(out: Path, force: bool) -> None:
                 f"({fileio.describe_files(foreign)}): --force replaces only an earlier export's "
                 "own files; move them away or choose another folder"
             )
-    fileio.check_out_dir(out.resolve().parent, "--out")
+    fileio.check_out_dir(out.resolve().parent, "--out", beside=False)
 
 
 def export_policy(
@@ -431,6 +435,13 @@ def export_policy(
     resolve_policy_path(policy)  # an unknown name or folder: one line, before anything else
     out = Path(out)
     check_out(out, force)
+    # one writer per output (2026-12-04): a second export into the same folder is refused
+    with OutputLock(out, "peghole export"):
+        check_out(out, force)  # again: an export that held the lock may have written it
+        return _export_locked(policy, out, verify, seed)
+
+
+def _export_locked(policy: str | Path, out: Path, verify: int, seed: int) -> dict[str, Any]:
     _onnx()
     bundle = load_policy(policy)
     env = bundle.make_env()

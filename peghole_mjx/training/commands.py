@@ -16,7 +16,7 @@ from peghole_mjx.envs.engines import engine_overrides
 from peghole_mjx.envs.mesh_extract import absolute_task
 from peghole_mjx.errors import UserInputError
 from peghole_mjx.lock import LOCK_NAME, RunLock
-from peghole_mjx.policies import load_policy
+from peghole_mjx.policies import check_recorded_params, load_policy, resolve_policy_path
 from peghole_mjx.training import evaluate as evaluation
 from peghole_mjx.training.cli import chosen_profile, train_config_from_args
 from peghole_mjx.training.config import env_setting, read_run_record
@@ -256,6 +256,8 @@ def cmd_evaluate(args: argparse.Namespace) -> int:
 def _checked_policy(checkpoint: str, args: argparse.Namespace, over: dict):
     """The policy ``checkpoint`` loaded (its files checked: :func:`load_policy`) and the env
     it will be evaluated in checked against ``--env`` and its training env (``--cross``)."""
+    # an edited params.npz of a recorded policy is refused (2026-12-04), before it is loaded
+    check_recorded_params(resolve_policy_path(checkpoint))
     bundle = load_policy(checkpoint)
     if args.env and bundle.env_name != args.env:
         raise UserInputError(f"{checkpoint}: a policy for {bundle.env_name}, not for {args.env}")
