@@ -60,7 +60,7 @@ from peghole_mjx.control.reference import (
 )
 from peghole_mjx.control.reference import rot_z as rotz
 from peghole_mjx.envs import get_default_config
-from peghole_mjx.envs.reward import REWARD_WEIGHTS, reward_terms
+from peghole_mjx.envs.reward import OUTCOME_WEIGHTS, REWARD_WEIGHTS, reward_terms
 from peghole_mjx.errors import UserInputError
 from peghole_mjx.geometry.mjcf import ACTUATORS, ROBOT_XML, TOOL_DOWN_MAT
 from peghole_mjx.geometry.parts import hole_parts, peg_parts
@@ -141,11 +141,15 @@ INACTIVE = frozenset(
         # the stuck joint's figures act only with stuck.enabled (REQUIRED off)
         "stuck.breakaway_N",
         "stuck.timeconst_s",
+        # the outcome reward's settings act only with reward_config.kind outcome (REQUIRED:
+        # the seed stack pays the thesis's eq 4.4)
+        *(f"reward_config.{k}" for k in OUTCOME_WEIGHTS),
     }
 )
 #: entries the sim honours at one value only: the 9-D observation, the 6-D action with the
 #: fixed stiffness (compliance strategy off), the preset's own geometry
 REQUIRED = {
+    "reward_config.kind": "thesis",
     "compliance_strategy": False,
     "learn_compliance_centre": False,
     "obs.prev_action": False,
