@@ -1,6 +1,7 @@
-"""The persistent XLA compilation cache that ``import peghole_mjx`` turns on
-(docs/guide/getting_started.md, "Compilation cache"): where it goes, how to move or disable
-it, and that JAX's own variable wins."""
+"""The persistent XLA compilation cache that ``peghole_mjx.runtime.configure()`` turns on (the
+``peghole`` commands call it; importing the package changes nothing: tests/test_runtime.py):
+where it goes, how to move or disable it, and that JAX's own variable wins, whether JAX or the
+package was imported first."""
 
 from __future__ import annotations
 
@@ -10,7 +11,10 @@ import sys
 
 import pytest
 
-PROBE = "import {first}; import peghole_mjx, jax; print(jax.config.jax_compilation_cache_dir)"
+PROBE = (
+    "import {first}; import peghole_mjx.runtime, jax; peghole_mjx.runtime.configure(); "
+    "print(jax.config.jax_compilation_cache_dir)"
+)
 
 
 def _cache_dir(tmp_path, first: str = "peghole_mjx", **env) -> str:
