@@ -29,7 +29,7 @@ from peghole_mjx.envs.randomization import (
     ft_noise_sd,
     randomization_fn,
 )
-from peghole_mjx.envs.reward import reward_terms
+from peghole_mjx.envs.reward import outcome_terms, reward_terms
 from peghole_mjx.envs.stuck import weld_solref
 from peghole_mjx.errors import UserInputError
 
@@ -105,6 +105,12 @@ def probe_reward(c):
     return _flat(t)
 
 
+def probe_outcome(c):
+    """The outcome reward's terms of one terminal-failure step with contact and progress."""
+    t = outcome_terms(20.0, 19.0, 30.0, 10.0, 0.0, 1.0, c.reward_config)
+    return _flat(t)
+
+
 def probe_termination(c):
     """Two worlds: one jamming and above the success margin, one at the time limit."""
     default_length = envs.get_default_config(ENV).episode_length
@@ -177,6 +183,10 @@ PURE = {
     "obs.torque_scale_Nm": (1.0, [probe_obs]),
     "obs.k_xy_scale_N_m": (500.0, [probe_obs]),
     "obs.k_rot_scale_Nm_rad": (100.0, [probe_obs]),
+    **{
+        f"reward_config.{k}": (v, [probe_outcome])
+        for k, v in {"discount": 0.9, "time_cost": 0.5, "w_contact": 0.5, "w_progress": 5.0}.items()
+    },
     **{
         f"reward_config.{k}": (v, [probe_reward])
         for k, v in {
@@ -332,7 +342,8 @@ def _leaves(c, prefix=""):
 
 def test_every_config_entry_is_checked():
     # test_impl_and_warp_buffers_are_read, test_engine_and_its_threads_are_read
-    extra = {"impl", "naconmax", "njmax", "engine", "mujoco_threads"}
+    # and reward_config.kind, which picks the function: tests/test_reward.py (the env's step)
+    extra = {"impl", "naconmax", "njmax", "engine", "mujoco_threads", "reward_config.kind"}
     for name in envs.ALL_ENVS:
         leaves = set(_leaves(envs.get_default_config(name)))
         assert leaves == set(PURE) | set(SCENE) | extra, name

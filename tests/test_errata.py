@@ -24,10 +24,12 @@ def test_e5_every_dual_preset_keeps_the_thesis_friction_001():
 
 
 def test_e9_the_return_is_discounted_with_gamma_099():
-    """E9: Eq (4.1) lacks gamma's exponent; the standard return with gamma 0.99 is used."""
+    """E9: Eq (4.1) lacks gamma's exponent; the standard return with gamma 0.99 is used for
+    the thesis's reward (the outcome reward, training's default, has its own: test_reward)."""
     assert default("discounting") == 0.99
+    thesis = {"env.reward_config.kind": "thesis"}
     for env in ("RectExtract", "DualExtract"):
-        assert load_train_config(env, "full").discounting == 0.99
+        assert load_train_config(env, "full", thesis).discounting == 0.99
 
 
 def test_e10_lateral_stiffness_reading_a_by_default_and_both_mapped():

@@ -241,7 +241,7 @@ def test_a_rollout_with_every_world_nan_is_a_failure_naming_the_likely_cause(cap
 def test_all_nan_rollout_names_nan_parameters_and_a_partial_nan_is_a_result(monkeypatch):
     env = envs.load("RectExtract", config_overrides={"representation": "box"})
     monkeypatch.setattr(rollout_mod, "_rollout_slice", _nan_slice([]))
-    policy = lambda params, obs, rng: obs  # noqa: E731
+    policy = lambda params, obs, rng: obs[..., : env.action_size]  # noqa: E731
     with pytest.raises(UserInputError, match="policy's parameters are not finite"):
         rollout_mod.rollout(env, policy, 3, params={"w": jnp.array([1.0, jnp.nan])})
     # at the env's defaults (representation aside) the policy's actions are named

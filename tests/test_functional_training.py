@@ -171,7 +171,7 @@ def test_t_interval_matches_the_textbook_value():
 @pytest.mark.parametrize(
     ("extra", "message"),
     [
-        (["--seeds", "0"], "--seeds must be a whole number >= 1"),
+        (["--seeds", "0"], "--seeds: must be a whole number in [1, 4096], got 0"),
         (["--seeds", "2", "--distributed"], "--seeds takes neither --distributed"),
         (["--seeds", "2", "--stop-at-success", "0.9"], "--seeds takes neither"),
     ],
@@ -179,7 +179,12 @@ def test_t_interval_matches_the_textbook_value():
 def test_cli_seeds_bad_input_is_one_line(tmp_path, capsys, extra, message):
     from peghole_mjx.cli import main
 
-    rc = main(["train", "--env", "RectExtract", "--quick", "--out", str(tmp_path / "r"), *extra])
+    try:  # argparse refuses a bad --seeds itself (exit 2 by SystemExit), the command the rest
+        rc = main(
+            ["train", "--env", "RectExtract", "--quick", "--out", str(tmp_path / "r"), *extra]
+        )
+    except SystemExit as exc:
+        rc = exc.code
     err = capsys.readouterr().err.strip().splitlines()
     assert rc == 2 and len(err) == 1 and message in err[0]
     assert not (tmp_path / "r" / "run.json").exists()
