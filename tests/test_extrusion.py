@@ -18,6 +18,8 @@ trimesh = pytest.importorskip("trimesh")
 manifold3d = pytest.importorskip("manifold3d")
 pytest.importorskip("coacd")
 
+from test_tasks import _refused  # noqa: E402 (the task tests' one-line refusal check)
+
 from peghole_mjx.cli import main  # noqa: E402
 from peghole_mjx.envs import task_make  # noqa: E402
 from peghole_mjx.envs.task_make import ContactRun, make_task  # noqa: E402
@@ -329,14 +331,6 @@ def test_a_part_that_is_not_an_extrusion_falls_back_to_coacd(tmp_path, monkeypat
 
 
 # ------------------------------------------------------------------ bad input, before work
-
-
-def _refused(argv, capsys, match: str) -> str:
-    rc = main(argv)
-    err = capsys.readouterr().err.strip().splitlines()
-    assert rc == 2, err
-    assert err[-1].startswith("peghole: error: ") and match in err[-1], err[-1]
-    return err[-1]
 
 
 def test_bad_pairs_are_refused_in_one_line_before_any_decomposition(tmp_path, capsys, monkeypatch):

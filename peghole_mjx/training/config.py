@@ -272,18 +272,25 @@ def load_train_config(
             )
     d.update(env=env, env_overrides={**env_over, **given}, profile=profile)
     # the outcome reward's own discount (one source: its env config entry)
-    gamma = reward_discount(env, d["env_overrides"])
-    d.setdefault("discounting", gamma)
-    if env_setting(env, d["env_overrides"], "reward_config.kind") == "outcome":
-        if not isinstance(d["discounting"], int | float) or d["discounting"] != gamma:
-            raise UserInputError(
-                f"discounting={d['discounting']!r} differs from the outcome reward's discount "
-                f"{gamma:g}: set env.reward_config.discount instead (the reward's ordering of "
-                "outcomes is checked at its own discount)"
-            )
+    d.setdefault("discounting", reward_discount(env, d["env_overrides"]))
+    kind = env_setting(env, d["env_overrides"], "reward_config.kind")
+    gamma = env_setting(env, d["env_overrides"], "reward_config.discount")
+    check_discount(kind, gamma, d["discounting"])
     if isinstance(d.get("hidden_layer_sizes"), tuple):
         d["hidden_layer_sizes"] = list(d["hidden_layer_sizes"])
     return TrainConfig.from_dict(d)
+
+
+def check_discount(kind: str, reward_gamma: float, discounting: Any) -> None:
+    """Refuse a learner discount other than the outcome reward's own (its shaping and its
+    ordering of outcomes hold at that discount only: :mod:`peghole_mjx.envs.reward`)."""
+    if kind != "outcome":
+        return
+    if not isinstance(discounting, int | float) or abs(discounting - reward_gamma) > 1e-12:
+        raise UserInputError(
+            f"training config discounting={discounting!r} differs from the outcome reward's "
+            f"discount {reward_gamma:g} (env.reward_config.discount): set that one instead"
+        )
 
 
 def reward_discount(env: str, env_overrides: dict[str, Any]) -> float:

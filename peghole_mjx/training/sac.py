@@ -61,7 +61,7 @@ from peghole_mjx.envs.extraction import PegHoleEnv
 from peghole_mjx.envs.metrics import accumulate_return, episode_totals, zero_returns
 from peghole_mjx.errors import UserInputError
 from peghole_mjx.policies import make_networks
-from peghole_mjx.training.config import TrainConfig
+from peghole_mjx.training.config import TrainConfig, check_discount
 
 AXIS = "i"
 
@@ -120,7 +120,8 @@ class SACTrainer:
         pure :func:`peghole_mjx.training.functional.make_train`; ``init``/``train_call``
         are then not for use). ``seed_axis``: the name of a ``vmap`` axis over seeds that
         the pieces run under (the reset predicate is reduced over it)."""
-        check_discount(env, cfg)
+        rc = env.config.reward_config
+        check_discount(rc.kind, rc.discount, cfg.discounting)
         self.env, self.cfg, self.seed_axis = env, cfg, seed_axis
         # the vmapped axes the acting step runs under (none under pmap: there each device's
         # flag is its own): the one-wide axis of the pure learner and the seeds' axis
@@ -381,17 +382,6 @@ class SACTrainer:
         """(normaliser, policy params) of device 0, on the host."""
         ts = jax.tree.map(lambda x: x[0], carry.ts)
         return jax.device_get((ts.normalizer, ts.policy_params))
-
-
-def check_discount(env: PegHoleEnv, cfg: TrainConfig) -> None:
-    """Refuse a learner discount other than the outcome reward's own (its shaping and its
-    ordering of outcomes hold at that discount only: :mod:`peghole_mjx.envs.reward`)."""
-    rc = env.config.reward_config
-    if rc.kind == "outcome" and abs(cfg.discounting - rc.discount) > 1e-12:
-        raise UserInputError(
-            f"training config discounting {cfg.discounting:g} differs from the outcome "
-            f"reward's discount {rc.discount:g} (env.reward_config.discount): set one of them"
-        )
 
 
 def _split_carry_key(c: Carry):
