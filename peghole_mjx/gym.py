@@ -43,6 +43,7 @@ for the vector env); later calls reuse the compiled functions.
 
 from __future__ import annotations
 
+import functools
 from typing import Any
 
 import jax
@@ -51,6 +52,7 @@ import numpy as np
 
 from peghole_mjx import envs, memory
 from peghole_mjx._optional import optional_import
+from peghole_mjx.envs.engines import batch_reset, select_worlds
 from peghole_mjx.errors import UserInputError
 from peghole_mjx.validation import check
 
@@ -138,15 +140,9 @@ class PegHoleVectorEnv(VectorEnv):
             terminated, truncated = jax.vmap(lambda s: _end_flags(env, s))(new)
             return new, terminated, truncated
 
-        def select(mask, a, b):
-            def pick(x, y):
-                return jnp.where(mask.reshape(mask.shape + (1,) * (x.ndim - 1)), x, y)
-
-            return jax.tree.map(pick, a, b)
-
-        self._reset_fn = jax.jit(jax.vmap(env.reset))
+        self._reset_fn = jax.jit(functools.partial(batch_reset, env))
         self._step_fn = jax.jit(step)
-        self._select_fn = jax.jit(select)
+        self._select_fn = jax.jit(select_worlds)
         self._state: envs.State | None = None
         self._autoreset = np.zeros(self.num_envs, dtype=bool)
 

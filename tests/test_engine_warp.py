@@ -24,6 +24,7 @@ this file).
 from __future__ import annotations
 
 import jax
+import jax.numpy as jnp
 import numpy as np
 import pytest
 
@@ -31,7 +32,9 @@ pytest.importorskip("warp", reason="warp-lang is not installed (pip install 'peg
 
 from peghole_mjx import envs
 from peghole_mjx._mjx import WARP_AVAILABLE
-from peghole_mjx.envs.rollout import scripted_policy
+from peghole_mjx.envs.engines import batch_reset, select_worlds
+from peghole_mjx.envs.rollout import make_runner, scripted_policy
+from peghole_mjx.envs.task_make import ContactRun, make_builtin
 
 pytestmark = pytest.mark.skipif(not WARP_AVAILABLE, reason="MJX cannot import MuJoCo Warp")
 
@@ -91,3 +94,55 @@ def test_warp_on_the_cpu_matches_mjx_jax(name):
     assert warp["pen"] == pytest.approx(ref["pen"], abs=PEN_ATOL)
     np.testing.assert_allclose(warp["wrench"], ref["wrench"], atol=WRENCH_ATOL)
     np.testing.assert_allclose(warp["depth"], ref["depth"], atol=DEPTH_ATOL)
+
+
+#: the worlds of the batched test: MuJoCo Warp's contact pool is shared by a batch's worlds
+#: (``naconmax`` per world times the worlds: envs/engines.py ``batch_worlds``)
+BATCH = 3
+
+
+@pytest.fixture(scope="module")
+def hex_task(tmp_path_factory):
+    """A built-in part's task folder (MeshExtract's parts)."""
+    out = tmp_path_factory.mktemp("warp_task") / "hex"
+    make_builtin("hex", 0.2, out, contacts=ContactRun(worlds=2, env_steps=40))
+    return out
+
+
+@pytest.mark.parametrize("name", [*envs.ALL_ENVS, "MeshExtract"])
+def test_warp_runs_a_batch_of_worlds(name, request):
+    """Every registered env runs a batch of worlds on MuJoCo Warp (what ``peghole envs
+    rollout --engine mjx-warp`` runs): the contact pool fits the batch, finished worlds are
+    frozen by ``select_worlds`` and the states stay finite."""
+    over = {"impl": "warp"}
+    if name in envs.TASK_ENVS:
+        over["task"] = str(request.getfixturevalue("hex_task"))
+    env = envs.load(name, config_overrides=over)
+    reset, run = make_runner(env, scripted_policy(env), 2, False, 0.99)
+    states, rec, fin = reset(jax.random.split(jax.random.PRNGKey(0), BATCH))
+    pool = np.asarray(states.data._impl.contact__dist)
+    assert pool.shape == (env._config.naconmax * BATCH,)
+    depth0 = np.asarray(states.info["depth_mm"])
+    states, rec, fin, _ = run(states, rec, fin, jax.random.PRNGKey(1), None)
+    assert np.asarray(states.data.qpos).shape[0] == BATCH
+    assert np.all(np.isfinite(np.asarray(states.obs)))
+    assert float(np.sum(states.metrics["overflow"])) == 0.0
+    assert np.all(np.asarray(states.info["depth_mm"]) < depth0), "the scripted pull moves out"
+
+
+def test_select_worlds_keeps_the_shared_pool():
+    """``select_worlds`` picks per-world fields by the mask and takes MuJoCo Warp's shared
+    contact pool from ``on_false`` whole (mjx.Data.where's rule), whatever its length."""
+    env = envs.load("RectExtract", config_overrides={"impl": "warp"})
+    reset = jax.jit(lambda k: batch_reset(env, k))
+    s1 = reset(jax.random.split(jax.random.PRNGKey(1), BATCH))
+    s2 = reset(jax.random.split(jax.random.PRNGKey(2), BATCH))
+    mask = jnp.array([True, False, True])
+    out = select_worlds(mask, s1, s2)
+    q1, q2, q = (np.asarray(s.data.qpos) for s in (s1, s2, out))
+    np.testing.assert_array_equal(q[[0, 2]], q1[[0, 2]])
+    np.testing.assert_array_equal(q[1], q2[1])
+    np.testing.assert_array_equal(
+        np.asarray(out.data._impl.contact__pos), np.asarray(s2.data._impl.contact__pos)
+    )
+    np.testing.assert_array_equal(np.asarray(out.obs)[1], np.asarray(s2.obs)[1])

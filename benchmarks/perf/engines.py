@@ -13,6 +13,7 @@ runner) describes each engine and starts every row in a fresh process.
 from __future__ import annotations
 
 import copy
+import functools
 import multiprocessing as mp
 import os
 import time
@@ -27,6 +28,7 @@ from benchmarks.baselines.pybullet_peghole import PegHoleSim
 from benchmarks.common import SCENE_OVERRIDES, SCENES, cpu_device, max_rss_mb
 from peghole_mjx import envs
 from peghole_mjx.envs.engine_mujoco import available_threads
+from peghole_mjx.envs.engines import batch_reset, select_worlds
 from peghole_mjx.envs.iiwa_constants import HOLE_BODY
 from peghole_mjx.envs.rollout import SCRIPTED_SPEED_M_S, scripted_policy
 from peghole_mjx.provenance import device
@@ -69,21 +71,20 @@ def run_mjx(
     action = scripted_policy(env)(None, None)
     n_reset = worlds if (gpu or impl == "warp") else min(worlds, 8)
     t0 = time.perf_counter()
-    base = jax.jit(jax.vmap(env.reset))(jax.random.split(jax.random.PRNGKey(0), n_reset))
+    base = jax.jit(functools.partial(batch_reset, env))(
+        jax.random.split(jax.random.PRNGKey(0), n_reset)
+    )
     jax.block_until_ready(base.obs)
     reset_s = time.perf_counter() - t0
     reps = -(-worlds // n_reset)
-    init = jax.tree.map(lambda x: jnp.concatenate([x] * reps)[:worlds], base)
+    init = base  # MuJoCo Warp: every world reset (its contact pool is sized for the batch)
+    if n_reset < worlds:
+        init = jax.tree.map(lambda x: jnp.concatenate([x] * reps)[:worlds], base)
 
     def run(states, init):
         def body(s, _):
             new = jax.vmap(env.step, in_axes=(0, None))(s, action)
-            done = new.done > 0
-
-            def pick(n, i):
-                return jnp.where(done.reshape((-1,) + (1,) * (n.ndim - 1)), i, n)
-
-            return jax.tree.map(pick, new, init), None
+            return select_worlds(new.done > 0, init, new), None
 
         states, _ = jax.lax.scan(body, states, None, length=chunk)
         return states

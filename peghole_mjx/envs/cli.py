@@ -11,7 +11,7 @@ from peghole_mjx import envs, fileio, policies
 from peghole_mjx import progress as prog
 from peghole_mjx.envs import contacts as contacts_mod
 from peghole_mjx.envs import rollout as rollout_mod
-from peghole_mjx.envs.engines import CLI_ENGINES, engine_overrides
+from peghole_mjx.envs.engines import CLI_ENGINES, engine_label, engine_overrides
 from peghole_mjx.envs.mesh_extract import absolute_task
 from peghole_mjx.errors import UserInputError
 from peghole_mjx.geometry.specs import get_preset
@@ -70,7 +70,7 @@ def _env_arguments(q: argparse.ArgumentParser) -> None:
         choices=CLI_ENGINES,
         default=None,
         help="physics engine: mjx (MuJoCo MJX), mjx-warp (MuJoCo Warp: CUDA GPU; a CPU runs "
-        "one world slowly), mujoco (MuJoCo C, "
+        "it slowly), mujoco (MuJoCo C, "
         "mujoco.batch threads), auto (mujoco without a GPU, else mjx). Default: auto for "
         "scripted/random, the policy's own engine for a policy",
     )
@@ -164,7 +164,7 @@ def cmd_rollout(args: argparse.Namespace) -> int:
         "physics_steps_per_s": round(res.physics_steps_per_s, 1),
     }
     if args.json:
-        print(dumps({**summary, **timing, "engine": env.config.engine}))
+        print(dumps({**summary, **timing, "engine": engine_label(env.config)}))
     else:
         print(
             f"{args.env} ({scene_name(env.config)}, engine {env.config.engine}), policy "

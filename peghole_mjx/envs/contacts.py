@@ -28,6 +28,7 @@ normal force on each hole geom over the episode. ``peghole envs contacts`` runs 
 from __future__ import annotations
 
 import copy
+import functools
 import weakref
 from collections import Counter
 from collections.abc import Callable
@@ -45,6 +46,7 @@ from peghole_mjx import fileio
 from peghole_mjx import progress as prog
 from peghole_mjx.envs import iiwa_constants as names
 from peghole_mjx.envs.engine_mujoco import STATE_SPEC
+from peghole_mjx.envs.engines import batch_reset, select_worlds
 from peghole_mjx.envs.extraction import PegHoleEnv
 from peghole_mjx.geometry.specs import MM
 
@@ -239,12 +241,7 @@ def plot_contacts(trace: ContactTrace, path: Path, title: str = "") -> Path:
 
 def restart_done(state: Any, start: Any) -> Any:
     """The batch ``state`` with its finished worlds put back to their start states ``start``."""
-    done = jnp.asarray(np.asarray(state.done) > 0)
-
-    def pick(new, old):
-        return jnp.where(done.reshape((-1,) + (1,) * (new.ndim - 1)), old, new)
-
-    return jax.tree.map(pick, state, start)
+    return select_worlds(jnp.asarray(np.asarray(state.done) > 0), start, state)
 
 
 class ContactReplay:
@@ -324,7 +321,7 @@ def batched_reset_step(env: PegHoleEnv) -> tuple[Callable, Callable]:
                 return finish(start(rngs))
 
         else:
-            reset = jax.jit(jax.vmap(env.reset))
+            reset = jax.jit(functools.partial(batch_reset, env))
         fns = _BATCHED[env] = (reset, jax.jit(jax.vmap(env.step)))
     return fns
 

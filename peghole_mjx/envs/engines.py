@@ -38,7 +38,7 @@ import jax.numpy as jnp
 import mujoco
 import numpy as np
 
-from peghole_mjx._mjx import mjx
+from peghole_mjx._mjx import mjx, tree_path_to_attr_str, warp_types
 from peghole_mjx.control import ImpedanceController, ImpedanceParams, Target
 from peghole_mjx.errors import UserInputError
 
@@ -48,6 +48,76 @@ ENGINES = ("mjx", "mujoco")
 
 #: the ``--engine`` choices of the commands: ``auto`` is :func:`default_engine`
 CLI_ENGINES = ("auto", "mjx", "mjx-warp", "mujoco")
+
+#: the named ``vmap`` axes of a batch of worlds: callers map ``env.reset`` over the worlds with
+#: ``axis_name=WORLD_AXIS`` (:func:`batch_reset`), the vmapped learner its seeds over
+#: ``SEED_AXIS``. MuJoCo Warp's contact buffer is one pool shared by all worlds of a batch
+#: (mujoco-mjx 3.17.0: ``naconmax`` rows in total), so a reset sizes it from these axes.
+WORLD_AXIS = "worlds"
+SEED_AXIS = "seeds"
+BATCH_AXES = (WORLD_AXIS, SEED_AXIS)
+
+
+def batch_worlds() -> int:
+    """How many worlds share a batch where this is traced: the product of the sizes of the
+    bound :data:`BATCH_AXES` (1 outside any of them)."""
+    n = 1
+    for name in BATCH_AXES:
+        try:
+            n *= jax.lax.axis_size(name)
+        except NameError:  # the axis is not bound here
+            pass
+    return n
+
+
+def batch_reset(env, keys: jax.Array):
+    """``env.reset`` of one world per key, vmapped over :data:`WORLD_AXIS` (every batched
+    reset of the package goes through here, so MuJoCo Warp's contact pool fits the batch)."""
+    return jax.vmap(env.reset, axis_name=WORLD_AXIS)(keys)
+
+
+def _is_warp(data) -> bool:
+    return isinstance(data, mjx.Data) and data.impl == mjx.Impl.WARP
+
+
+def world_where(cond: jax.Array, on_true, on_false):
+    """One world's physics state: ``on_true`` where ``cond`` (a scalar, or per world under
+    ``vmap``), else ``on_false``. MuJoCo Warp's fields shared by a batch's worlds (its contact
+    pool) are taken from ``on_true`` (``mjx.Data.where``'s rule)."""
+    if _is_warp(on_true):
+        return on_true.where(~cond, on_false)
+    return jax.tree.map(lambda a, b: jnp.where(cond, a, b), on_true, on_false)
+
+
+def _per_world_paths(data) -> set:
+    """The tree paths of ``data``'s per-world leaves: all of them, except MuJoCo Warp's fields
+    shared by a batch (mujoco-mjx's own table, the one ``mjx.Data.where`` reads)."""
+    table = warp_types._BATCH_DIM["Data"]
+    return {
+        p
+        for p, _ in jax.tree_util.tree_leaves_with_path(data)
+        if table.get(tree_path_to_attr_str(p), True)
+    }
+
+
+def select_worlds(mask: jax.Array, on_true, on_false):
+    """A batch of env states (leading axis: worlds): world ``w`` from ``on_true`` where
+    ``mask[w]``, else from ``on_false``. MuJoCo Warp's fields shared by the batch's worlds
+    (its contact pool, recomputed at every step) are taken from ``on_false``."""
+    n = mask.shape[0]
+
+    def pick(x, y):
+        return jnp.where(mask.reshape((n,) + (1,) * (x.ndim - 1)), x, y)
+
+    data = getattr(on_false, "data", None)
+    if not _is_warp(data):
+        return jax.tree.map(pick, on_true, on_false)
+    keep = _per_world_paths(data)
+    new_data = jax.tree_util.tree_map_with_path(
+        lambda p, x, y: pick(x, y) if p in keep else y, on_true.data, data
+    )
+    rest = jax.tree.map(pick, on_true.replace(data=None), on_false.replace(data=None))
+    return rest.replace(data=new_data)
 
 
 def default_engine() -> str:
@@ -65,6 +135,13 @@ def engine_overrides(choice: str) -> dict[str, str]:
     if choice == "mjx-warp":
         return {"engine": "mjx", "impl": "warp"}
     return {"engine": choice}
+
+
+def engine_label(config) -> str:
+    """The ``--engine`` name of an env config's engine entries (``mjx`` with ``impl`` warp is
+    ``mjx-warp``): what results record as their engine."""
+    impl = config.get("impl", "jax") if hasattr(config, "get") else "jax"
+    return "mjx-warp" if config["engine"] == "mjx" and impl == "warp" else config["engine"]
 
 
 #: MuJoCo Warp's ``OverflowType`` bits that mean dropped contacts or constraint rows: NEFC,
@@ -164,9 +241,17 @@ class MjxEngine:
         return self._model() if callable(self._model) else self._model
 
     def make_data(self):
-        """An ``mjx.Data`` at the model's defaults (no forward pass)."""
+        """An ``mjx.Data`` at the model's defaults (no forward pass). MuJoCo Warp's contact
+        pool holds ``naconmax`` contacts per world for every world of the batch being traced
+        (:func:`batch_worlds`); ``njmax`` is per world."""
         if self.impl == "warp":  # Warp's make_data takes the MjModel, not an mjx.Model
-            return mjx.make_data(self.mj_model, impl="warp", **self._buffers)
+            b = self._buffers
+            return mjx.make_data(
+                self.mj_model,
+                impl="warp",
+                naconmax=b["naconmax"] * batch_worlds(),
+                njmax=b["njmax"],
+            )
         return mjx.make_data(self.model, impl=self.impl)
 
     def init_data(

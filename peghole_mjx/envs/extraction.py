@@ -55,6 +55,7 @@ from peghole_mjx.control.kinematics import newton_ik, rot_z
 from peghole_mjx.envs import iiwa_constants as names
 from peghole_mjx.envs import stuck
 from peghole_mjx.envs.base import PegHoleBase, State
+from peghole_mjx.envs.engines import world_where
 from peghole_mjx.envs.metrics import STUCK_METRICS, zero_metrics
 from peghole_mjx.envs.randomization import (
     breakaway_draw,
@@ -531,7 +532,7 @@ class PegHoleEnv(PegHoleBase):
         # world (counted in nan_worlds)
         finite = finite & jnp.all(jnp.isfinite(action))
         # a NaN world keeps its last finite state and ends its episode; the batch goes on
-        data = jax.tree.map(lambda new, old: jnp.where(finite, new, old), data, state.data)
+        data = world_where(finite, data, state.data)
         nan = 1.0 - finite.astype(jnp.float32)
         if self._weld is not None:  # the weld releases at the end of the step that breaks it
             released = stuck.released(

@@ -29,6 +29,7 @@ from tqdm import tqdm
 from peghole_mjx import envs, fileio, memory
 from peghole_mjx import progress as prog
 from peghole_mjx.envs.config import leaves
+from peghole_mjx.envs.engines import batch_reset, select_worlds
 from peghole_mjx.envs.extraction import PegHoleEnv
 from peghole_mjx.envs.metrics import (
     STATS,
@@ -118,7 +119,7 @@ def _batch_reset(env: PegHoleEnv) -> Callable:
 
         @jax.jit
         def reset(rngs):
-            return _batch_start(jax.vmap(env.reset)(rngs))
+            return _batch_start(batch_reset(env, rngs))
 
         return reset
     start = jax.jit(jax.vmap(env.reset_start))
@@ -152,11 +153,7 @@ def make_runner(env: PegHoleEnv, policy: Callable, chunk: int, with_params: bool
         new = jax.vmap(env.step)(states, actions)
         done_now = (new.done > 0) & ~finished
 
-        def keep(n, o):
-            mask = finished.reshape((-1,) + (1,) * (n.ndim - 1))
-            return jnp.where(mask, o, n)
-
-        states = jax.tree.map(keep, new, states)
+        states = select_worlds(finished, states, new)
         r = jnp.where(finished, 0.0, new.reward)
         acc = accumulate_return(acc, r, gamma)
         ended = {**new.metrics, **acc}

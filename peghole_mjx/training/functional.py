@@ -26,12 +26,14 @@ import flax
 import jax
 import jax.numpy as jnp
 
+from peghole_mjx.envs import engines
 from peghole_mjx.envs.extraction import PegHoleEnv
 from peghole_mjx.training.config import TrainConfig
 from peghole_mjx.training.sac import AXIS, Carry, SACTrainer
 
-#: the name of the ``vmap`` axis over seeds (``peghole train --seeds N``)
-SEED_AXIS = "seeds"
+#: the name of the ``vmap`` axis over seeds (``peghole train --seeds N``); one of the batch
+#: axes a reset sizes MuJoCo Warp's contact pool from (:data:`engines.BATCH_AXES`)
+SEED_AXIS = engines.SEED_AXIS
 
 
 @flax.struct.dataclass

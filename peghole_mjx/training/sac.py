@@ -57,11 +57,13 @@ from brax.training.agents.sac import losses as sac_losses
 from brax.training.types import Transition
 from jax._src import distributed  # private (jax 0.10.2): the coordination client's barrier
 
+from peghole_mjx.envs.engines import batch_reset, select_worlds
 from peghole_mjx.envs.extraction import PegHoleEnv
 from peghole_mjx.envs.metrics import accumulate_return, episode_totals, zero_returns
 from peghole_mjx.errors import UserInputError
 from peghole_mjx.policies import make_networks
 from peghole_mjx.training.config import TrainConfig, check_discount
+from peghole_mjx.training.critics import with_critic
 
 AXIS = "i"
 
@@ -136,7 +138,7 @@ class SACTrainer:
             )
         self.envs_per_dev = cfg.num_envs // n_all
         self.network = network_description(env, cfg)
-        self.nets = make_networks(self.network)
+        self.nets = with_critic(make_networks(self.network), cfg.critic, self.network)
         obs_size, act_size = self.network["observation_size"], self.network["action_size"]
         self.obs_size, self.act_size = obs_size, act_size
         self.fixed_alpha = cfg.alpha != "auto"
@@ -217,7 +219,7 @@ class SACTrainer:
             gradient_steps=jnp.zeros((), jnp.int32),
         )
         k_env, k_buf, k_run = jax.random.split(local_key, 3)
-        env_state = jax.vmap(self.env.reset)(jax.random.split(k_env, self.envs_per_dev))
+        env_state = batch_reset(self.env, jax.random.split(k_env, self.envs_per_dev))
         n = self.envs_per_dev
         ep_acc = zero_returns(n)
         carry = Carry(ts, env_state, ep_acc, self.buffer.init(k_buf), k_run)
@@ -236,12 +238,8 @@ class SACTrainer:
         done = nxt.done > 0
 
         def with_resets(_):
-            fresh = jax.vmap(self.env.reset)(jax.random.split(key, self.envs_per_dev))
-
-            def pick(f, x):
-                return jnp.where(done.reshape(done.shape + (1,) * (x.ndim - 1)), f, x)
-
-            return jax.tree.map(pick, fresh, nxt)
+            fresh = batch_reset(self.env, jax.random.split(key, self.envs_per_dev))
+            return select_worlds(done, fresh, nxt)
 
         any_done = jnp.any(done)
         if self._vmap_axes:  # one flag for the call's vmapped axes: a true cond
