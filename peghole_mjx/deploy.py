@@ -55,6 +55,7 @@ import numpy as np
 
 from peghole_mjx._optional import optional_import
 from peghole_mjx.errors import CorruptFileError, UserInputError
+from peghole_mjx.rotations import rot_from_rotvec, rotvec_from_mat
 
 #: the ``action.json`` format this module reads (and :mod:`peghole_mjx.policies.export` writes)
 EXPORT_FORMAT_VERSION = 1
@@ -129,26 +130,6 @@ class ImpedanceCommand:
     def k_rot_Nm_rad(self) -> float:
         """Rotational stiffness K_theta (N m/rad)."""
         return float(self.stiffness[3])
-
-
-def rotvec_from_mat(R: np.ndarray) -> np.ndarray:
-    """Rotation vector (axis * angle, rad) of a rotation matrix; the env's formula
-    (:func:`peghole_mjx.control.kinematics.rotvec_from_mat`) in NumPy."""
-    R = np.asarray(R, np.float64)
-    s = 0.5 * np.array([R[2, 1] - R[1, 2], R[0, 2] - R[2, 0], R[1, 0] - R[0, 1]])
-    sin = float(np.linalg.norm(s))
-    cos = 0.5 * (float(np.trace(R)) - 1.0)
-    angle = math.atan2(sin, cos)
-    return s * (angle / sin if sin > 1e-9 else 1.0)
-
-
-def mat_from_rotvec(v) -> np.ndarray:
-    """Rotation matrix of a rotation vector (Rodrigues' formula)."""
-    v = np.asarray(v, np.float64)
-    th = float(np.linalg.norm(v))
-    k = v / max(th, 1e-12)
-    K = np.array([[0.0, -k[2], k[1]], [k[2], 0.0, -k[0]], [-k[1], k[0], 0.0]])
-    return np.eye(3) + math.sin(th) * K + (1 - math.cos(th)) * K @ K
 
 
 def _vector(value: Any, size: int, name: str) -> np.ndarray:
@@ -407,7 +388,7 @@ class DeployedPolicy:
             for k, v in given.items()
         }
         self._cmd_tip = tip
-        self._cmd_rot = mat_from_rotvec(tilt) @ self._tool_down
+        self._cmd_rot = rot_from_rotvec(tilt) @ self._tool_down
         self._ff = np.zeros(3)
         self._k_xy, self._k_rot, self._L_C = (
             gains["k_xy_N_m"],
@@ -444,7 +425,7 @@ class DeployedPolicy:
     def tip_position(self, flange_pos_m, flange_tilt_rad) -> np.ndarray:
         """The peg tip (hole frame, m) of a flange pose: the peg is rigid on the flange."""
         pos = _vector(flange_pos_m, 3, "flange_pos_m")
-        R = mat_from_rotvec(_vector(flange_tilt_rad, 3, "flange_tilt_rad")) @ self._tool_down
+        R = rot_from_rotvec(_vector(flange_tilt_rad, 3, "flange_tilt_rad")) @ self._tool_down
         return pos + R @ self._tip_in_flange
 
     def extracted(self, flange_pos_m, flange_tilt_rad) -> bool:
@@ -558,7 +539,7 @@ __all__ = [
     "DeployedPolicy",
     "ImpedanceCommand",
     "SensorError",
-    "mat_from_rotvec",
     "read_spec",
+    "rot_from_rotvec",
     "rotvec_from_mat",
 ]

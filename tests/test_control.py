@@ -7,6 +7,10 @@ All worlds of the compliance tests run in ONE jitted MJX rollout (the JAX law in
 from __future__ import annotations
 
 import functools
+import re
+import subprocess
+import sys
+from pathlib import Path
 
 import jax
 import jax.numpy as jnp
@@ -341,3 +345,20 @@ def test_a_tool_offset_along_the_axis_is_an_L_C_change_in_the_law(twin_rig):
     a, b = law(dx, target, p_tool), law(dx, target, p_lc)
     np.testing.assert_allclose(np.asarray(a.tau), np.asarray(b.tau), rtol=1e-4, atol=1e-4)
     np.testing.assert_allclose(np.asarray(a.x_C), np.asarray(b.x_C), atol=1e-6)
+
+
+def test_one_rotation_helper_per_array_library():
+    """``rotvec_from_mat`` / ``rot_from_rotvec`` are defined once in JAX (control/kinematics.py)
+    and once in NumPy (rotations.py), and the robot-side runner imports the NumPy
+    module without loading JAX or MuJoCo."""
+    pkg = Path(__file__).resolve().parents[1] / "peghole_mjx"
+    for name in ("rotvec_from_mat", "rot_from_rotvec"):
+        defs = sorted(
+            str(p.relative_to(pkg))
+            for p in pkg.rglob("*.py")
+            if re.search(rf"^def {name}\(", p.read_text(), re.M)
+        )
+        assert defs == ["control/kinematics.py", "rotations.py"], (name, defs)
+    code = "import sys, peghole_mjx.deploy; print('jax' in sys.modules, 'mujoco' in sys.modules)"
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
+    assert out.stdout.split() == ["False", "False"], out

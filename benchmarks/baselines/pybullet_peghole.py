@@ -61,6 +61,7 @@ from peghole_mjx.control.reference import (
 from peghole_mjx.control.reference import rot_z as rotz
 from peghole_mjx.envs import get_default_config
 from peghole_mjx.envs.reward import OUTCOME_WEIGHTS, REWARD_WEIGHTS, reward_terms
+from peghole_mjx.envs.rollout import SCRIPTED_SPEED_M_S
 from peghole_mjx.errors import UserInputError
 from peghole_mjx.geometry.mjcf import ACTUATORS, ROBOT_XML, TOOL_DOWN_MAT
 from peghole_mjx.geometry.parts import hole_parts, peg_parts
@@ -626,8 +627,20 @@ class PegHoleSim:
         )
 
 
-def make_gym_env(env: str = "RectExtract", seed: int = 0):
-    """A gymnasium ``Env`` around :class:`PegHoleSim` (import-time optional dependency)."""
+def scripted_action(config) -> np.ndarray:
+    """The scripted baseline's action in this sim: the MJX envs' scripted baseline
+    (:func:`peghole_mjx.envs.rollout.scripted_policy`) with the compliance strategy off, a
+    straight pull at ``SCRIPTED_SPEED_M_S`` with no lateral offset and no feed-forward (the
+    stiffness is the env config's fixed one)."""
+    a = np.zeros(6, np.float32)
+    a[2] = SCRIPTED_SPEED_M_S / config.action.max_speed_m_s
+    return np.clip(a, -1.0, 1.0)
+
+
+def make_gym_env(env: str = "RectExtract", seed: int = 0, config=None):
+    """A gymnasium ``Env`` around :class:`PegHoleSim` (import-time optional dependency);
+    ``config``: an env config of ``env`` with changes (checked by :func:`check_config`),
+    default the env's own."""
     import gymnasium as gym
 
     class PyBulletRectExtract(gym.Env):
@@ -636,7 +649,7 @@ def make_gym_env(env: str = "RectExtract", seed: int = 0):
         metadata = {"render_modes": []}  # noqa: RUF012
 
         def __init__(self):
-            self.sim = PegHoleSim(env, seed=seed)
+            self.sim = PegHoleSim(env, seed=seed, config=config)
             self.observation_space = gym.spaces.Box(-np.inf, np.inf, (9,), np.float32)
             self.action_space = gym.spaces.Box(-1.0, 1.0, (6,), np.float32)
 
@@ -669,4 +682,5 @@ __all__ = [
     "env_config",
     "make_gym_env",
     "make_urdf",
+    "scripted_action",
 ]

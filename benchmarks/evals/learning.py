@@ -29,6 +29,29 @@ training config (env overrides, reward kind and engine included). The runs live 
 ``--out``/runs/TASK/seed_S; an interrupted benchmark started again with the same command
 resumes each unfinished run from its checkpoint and skips finished runs and evaluations; a
 rerun with other settings into the same folder is refused.
+
+Stacks (``--stack``; each writes its own files, so the three sit in one ``--out``):
+
+* ``ours`` (default): the above; ``learning.json``, ``learning.csv``, ``curves_<task>.png``,
+  runs under ``runs/``. Updates per env step: ``grad_updates_per_step / num_envs`` (cpu
+  profile: 16 / 32 = 0.5, batch 256).
+* ``seed``: the thesis's pipeline rebuilt (``benchmarks/baselines/seed_stack.py``): the PyBullet
+  env (its default config: eq 4.4, compliance strategy off, 0.1 m/s pull) + SB3 SAC with
+  ``SAC_SETTINGS`` (gamma 0.99, ent_coef 0.2, buffer 100k, train_freq 50; SB3's defaults
+  else: 1 update per 50 env steps, 0.02, batch 256). RectExtract and RectExtractHard only
+  (default both; others are refused). Baseline: the same scripted straight pull (0.02 m/s) in
+  the PyBullet env, on the same episodes (``pybullet_peghole.scripted_action``).
+* ``sb3``: SB3 SAC with its defaults (``MlpPolicy``, 1 update per env step, batch 256, buffer
+  1e6) on our Gymnasium adapter (``PegHoleGymEnv``: time-outs are truncations), the env of
+  the ``--profile``'s training config (its env overrides), engine ``mujoco`` (``--engine auto``),
+  gamma the env's reward discount (0.9995 for the outcome reward). Baseline: ``evaluate``'s.
+
+``seed`` and ``sb3`` write ``learning_<stack>.json`` / ``.csv`` and ``curves_<stack>_<task>.png``,
+their runs under ``runs_<stack>/``; the same budget (``--num-timesteps`` or the profile's), the
+same evaluation schedule (``--eval-every`` env steps, ``--eval-episodes`` fresh deterministic
+episodes, clock excluded), the same final evaluation and the same statistics. Their runs,
+checkpoints and resumption: :mod:`benchmarks.evals.learning_stacks`. Only ``env.KEY=VALUE``
+``--set`` changes apply to them.
 """
 
 from __future__ import annotations
@@ -46,11 +69,12 @@ from scipy import stats as sps
 from tqdm import tqdm
 
 from benchmarks.common import parse_overrides, write_rows
+from benchmarks.evals import learning_stacks as stacks
 from peghole_mjx import fileio
-from peghole_mjx.envs.engines import engine_overrides
+from peghole_mjx.envs.engines import engine_label, engine_overrides
 from peghole_mjx.errors import UserInputError
 from peghole_mjx.provenance import run_provenance
-from peghole_mjx.training.config import load_train_config
+from peghole_mjx.training.config import TrainConfig, load_train_config
 from peghole_mjx.training.evaluate import evaluate
 from peghole_mjx.training.logs import read_metrics
 from peghole_mjx.training.run import TrainingRun
@@ -83,6 +107,8 @@ CSV_FIELDS = (
     "device",
     "date",
     "commit",
+    "stack",
+    "updates_per_env_step",
 )
 
 
@@ -141,8 +167,10 @@ def task_summary(task: str, per_seed: list[dict]) -> dict[str, Any]:
     ]
     steps = [s["steps_to_95"] for s in per_seed if s["steps_to_95"] is not None]
     clock = [s["clock_to_95_s"] for s in per_seed if s["clock_to_95_s"] is not None]
-    d_mean = [s["policy_mean_fz_N"] - s["baseline_mean_fz_N"] for s in per_seed]
-    d_peak = [s["policy_peak_fz_N"] - s["baseline_peak_fz_N"] for s in per_seed]
+    # a seed without a baseline on its episodes (none in its env) has no F_z difference
+    based = [s for s in per_seed if s["baseline_mean_fz_N"] is not None]
+    d_mean = [s["policy_mean_fz_N"] - s["baseline_mean_fz_N"] for s in based]
+    d_peak = [s["policy_peak_fz_N"] - s["baseline_peak_fz_N"] for s in based]
     return {
         "task": task,
         "seeds": [s["seed"] for s in per_seed],
@@ -154,9 +182,9 @@ def task_summary(task: str, per_seed: list[dict]) -> dict[str, Any]:
         "steps_to_95": _median_iqr(steps),
         "clock_to_95_s": _median_iqr(clock),
         "reached_95": len(steps),
-        "mean_fz_minus_baseline_N": float(np.mean(d_mean)),
+        "mean_fz_minus_baseline_N": float(np.mean(d_mean)) if d_mean else None,
         "mean_fz_minus_baseline_ci95": t_ci(d_mean),
-        "peak_fz_minus_baseline_N": float(np.mean(d_peak)),
+        "peak_fz_minus_baseline_N": float(np.mean(d_peak)) if d_peak else None,
         "peak_fz_minus_baseline_ci95": t_ci(d_peak),
     }
 
@@ -164,7 +192,10 @@ def task_summary(task: str, per_seed: list[dict]) -> dict[str, Any]:
 # ---------------------------------------------------------------------- runs
 def seed_record(run_dir: Path, final: dict[str, Any]) -> dict[str, Any]:
     """One seed's record: its evaluations' curve, best and first >= 95 %, and its final
-    policy's evaluation against the baseline (``final``: :func:`evaluate`'s result)."""
+    policy's evaluation against the baseline (``final``: :func:`evaluate`'s result, or a
+    stack's with the same ``policy``, ``baseline`` (None: no baseline) and ``episodes``).
+    Every stack's run folder holds ``run.json`` (``config.seed``) and ``metrics.csv`` (one
+    row per evaluation: ``step``, ``eval/success_rate``, ``train_wall_s``)."""
     rows = read_metrics(run_dir)
     curve = [
         (int(r["step"]), _f(r.get("eval/success_rate")))
@@ -172,10 +203,14 @@ def seed_record(run_dir: Path, final: dict[str, Any]) -> dict[str, Any]:
         if _f(r.get("eval/success_rate")) is not None
     ]
     hit = first_at(rows)
-    cfg = json.loads((run_dir / "run.json").read_text())["config"]
+    run_json = json.loads((run_dir / "run.json").read_text())
+    cfg = run_json["config"]
     pol, base = final["policy"], final["baseline"]
+    if base is None:
+        base = {"success_rate": None, "mean_fz_N": None, "peak_fz_N": None}
     return {
         "seed": cfg["seed"],
+        "run_commit": run_json.get("commit", "unknown: run.json written before runs recorded it"),
         "curve": curve,
         "best_eval": max((v for _, v in curve), default=0.0),
         "steps_to_95": int(hit["step"]) if hit else None,
@@ -183,9 +218,9 @@ def seed_record(run_dir: Path, final: dict[str, Any]) -> dict[str, Any]:
         "final_success": float(pol["success_rate"]),
         "policy_mean_fz_N": float(pol["mean_fz_N"]),
         "policy_peak_fz_N": float(pol["peak_fz_N"]),
-        "baseline_success": float(base["success_rate"]),
-        "baseline_mean_fz_N": float(base["mean_fz_N"]),
-        "baseline_peak_fz_N": float(base["peak_fz_N"]),
+        "baseline_success": _f(base["success_rate"]),
+        "baseline_mean_fz_N": _f(base["mean_fz_N"]),
+        "baseline_peak_fz_N": _f(base["peak_fz_N"]),
         "final_episodes": int(final["episodes"]),
     }
 
@@ -206,11 +241,14 @@ def train_config(task: str, seed: int, args):
 
 def run_seed(task: str, seed: int, args, out: Path) -> dict[str, Any]:
     """Train (or resume, or skip when finished) one seed and evaluate its final policy."""
+    if args.stack != "ours":  # an SB3 stack: its run folder under runs_<stack>/
+        cfg, run_dir, final = stacks.run_seed(args.stack, task, seed, args, out)
+        return {"config": cfg, **seed_record(run_dir, final)}
     run_dir = out / "runs" / task / f"seed_{seed}"
     cfg = train_config(task, seed, args)
     if (run_dir / "run.json").exists():
-        recorded = json.loads((run_dir / "run.json").read_text())["config"]
-        if recorded != json.loads(dumps(cfg.as_dict())):
+        recorded = TrainConfig.from_dict(json.loads((run_dir / "run.json").read_text())["config"])
+        if json.loads(dumps(recorded.as_dict())) != json.loads(dumps(cfg.as_dict())):
             raise UserInputError(
                 f"{run_dir} holds a run of another config: rerun with the settings it was "
                 "started with, or another --out"
@@ -228,7 +266,7 @@ def run_seed(task: str, seed: int, args, out: Path) -> dict[str, Any]:
     return {"config": cfg.as_dict(), **seed_record(run_dir, final)}
 
 
-def plot_task(task: str, per_seed: list[dict], path: Path) -> None:
+def plot_task(task: str, per_seed: list[dict], path: Path, title: str | None = None) -> None:
     """Evaluation success against env steps: the seeds' mean and 95 % band, each seed thin."""
     fig, ax = plt.subplots(figsize=(6, 3.5))
     steps = sorted({s for rec in per_seed for s, _ in rec["curve"]})
@@ -244,7 +282,7 @@ def plot_task(task: str, per_seed: list[dict], path: Path) -> None:
     ax.plot(steps, mean, color="C0", lw=2, label=f"mean of {len(per_seed)} seeds")
     ax.fill_between(steps, mean - half, mean + half, color="C0", alpha=0.25, label="95 % band")
     ax.axhline(TARGET, color="C3", ls="--", lw=1)
-    ax.set(xlabel="env steps", ylabel="evaluation success", ylim=(-0.02, 1.02), title=task)
+    ax.set(xlabel="env steps", ylabel="evaluation success", ylim=(-0.02, 1.02), title=title or task)
     ax.legend(loc="lower right", fontsize=8)
     fig.tight_layout()
     fig.savefig(path, dpi=120)
@@ -254,10 +292,21 @@ def plot_task(task: str, per_seed: list[dict], path: Path) -> None:
 def main(argv: list[str] | None = None) -> int:
     p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     p.add_argument("--out", required=True, type=Path, help="results folder (runs inside)")
-    p.add_argument("--tasks", nargs="+", default=list(TASKS))
+    p.add_argument(
+        "--stack",
+        choices=stacks.STACKS,
+        default="ours",
+        help="ours (default), seed (PyBullet + SB3 SAC, the thesis's settings) or sb3 (SB3 "
+        "SAC's defaults on our Gymnasium adapter)",
+    )
+    p.add_argument(
+        "--tasks", nargs="+", default=None, help=f"default {' '.join(TASKS)} (seed: Rect*)"
+    )
     p.add_argument("--seeds", nargs="+", type=int, default=list(SEEDS))
     p.add_argument("--profile", default="cpu", help="training profile (default cpu)")
-    p.add_argument("--engine", default="auto", help="physics engine (default auto)")
+    p.add_argument(
+        "--engine", default="auto", help="physics engine (default auto; sb3: auto is mujoco)"
+    )
     p.add_argument("--num-timesteps", type=int, default=None, help="budget (default: profile's)")
     p.add_argument("--eval-every", type=int, default=1600, help="env steps between evaluations")
     p.add_argument("--eval-episodes", type=int, default=64, help="episodes per evaluation")
@@ -266,7 +315,12 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--set", dest="sets", action="append", help="KEY=VALUE training override")
     args = p.parse_args(argv)
     command = ["python", "-m", "benchmarks.evals.learning", *(argv or sys.argv[1:])]
+    if args.tasks is None:
+        allowed = stacks.STACK_TASKS.get(args.stack)
+        args.tasks = list(allowed if allowed is not None else TASKS)
+    args.command = command
     try:
+        stacks.check_args(args)
         return _run(args, command)
     except UserInputError as exc:
         print(f"learning: error: {exc}", file=sys.stderr)
@@ -276,26 +330,43 @@ def main(argv: list[str] | None = None) -> int:
 def _run(args, command: list[str]) -> int:
     out = args.out
     out.mkdir(parents=True, exist_ok=True)
+    # the provenance of the code that starts the runs (a commit made while they run is not
+    # theirs); each run's own commit is in its run.json and per_seed's ``run_commit``
+    prov = (
+        run_provenance(command) if args.stack == "ours" else stacks.provenance(args.stack, command)
+    )
     units = [(t, s) for t in args.tasks for s in args.seeds]
     results: dict[str, list[dict]] = {t: [] for t in args.tasks}
     for task, seed in tqdm(units, desc="learning benchmark (task x seed)", file=sys.stderr):
         results[task].append(run_seed(task, seed, args, out))
     tasks = []
+    # ours keeps its file names (learning.json, curves_TASK.png); a stack its own beside them
+    stem = "learning" if args.stack == "ours" else f"learning_{args.stack}"
+    curves = "curves_" if args.stack == "ours" else f"curves_{args.stack}_"
     for task, per_seed in results.items():
         summary = task_summary(task, per_seed)
         cfg = per_seed[0]["config"]
         over = cfg["env_overrides"]
+        if args.stack == "ours":
+            engine, kind = engine_label(over), over.get("reward_config.kind", "thesis")
+            # one batched env step of num_envs worlds, then grad_updates_per_step SGD steps
+            upe = cfg["grad_updates_per_step"] / cfg["num_envs"]
+        else:
+            engine, kind, upe = cfg["engine"], cfg["reward_kind"], cfg["updates_per_env_step"]
         summary |= {
-            "engine": over["engine"],
-            "reward_kind": over.get("reward_config.kind", "thesis"),
+            "engine": engine,
+            "reward_kind": kind,
+            "updates_per_env_step": upe,
             "config": {k: v for k, v in cfg.items() if k != "seed"},
             "per_seed": per_seed,
         }
-        plot_task(task, per_seed, out / f"curves_{task}.png")
+        title = task if args.stack == "ours" else f"{task} ({args.stack})"
+        plot_task(task, per_seed, out / f"{curves}{task}.png", title)
         tasks.append(summary)
-    prov = run_provenance(command)
     doc = {
         "benchmark": "learning",
+        "stack": args.stack,
+        "stack_description": stacks.STACK_NAMES[args.stack],
         "target_success": TARGET,
         "collapse_margin": COLLAPSE_MARGIN,
         "final_episodes": args.final_episodes,
@@ -307,7 +378,7 @@ def _run(args, command: list[str]) -> int:
         "config": "see tasks; each task's full training config is its entry's 'config'",
         **prov,
     }
-    fileio.write_text(out / "learning.json", dumps(doc, indent=2) + "\n")
+    fileio.write_text(out / f"{stem}.json", dumps(doc, indent=2) + "\n")
     rows = []
     for t in tasks:
         ci, mci = t["final_success_ci95"], t["mean_fz_minus_baseline_ci95"] or [None, None]
@@ -332,10 +403,12 @@ def _run(args, command: list[str]) -> int:
                 "device": prov["device"],
                 "date": prov["date"],
                 "commit": prov["commit"],
+                "stack": args.stack,
+                "updates_per_env_step": t["updates_per_env_step"],
             }
         )
-    write_rows(out / "learning.csv", rows, CSV_FIELDS)
-    print(f"wrote {out / 'learning.json'} and {out / 'learning.csv'}")
+    write_rows(out / f"{stem}.csv", rows, CSV_FIELDS)
+    print(f"wrote {out / f'{stem}.json'} and {out / f'{stem}.csv'}")
     return 0
 
 

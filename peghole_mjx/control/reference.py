@@ -9,8 +9,8 @@ computes (``mj_jac``, ``mj_fullM``, ``qfrc_bias``). The MuJoCo C and PyBullet ba
 ``tests/test_control.py`` checks it against the JAX law on random states.
 :func:`impedance_torque_c` gathers those arrays from an ``MjData``.
 
-The rotation helpers are the NumPy twins of :mod:`peghole_mjx.control.kinematics` (rotation
-vector = axis x angle, rad).
+The rotation helpers are :mod:`peghole_mjx.rotations`' (re-exported here), the NumPy
+twins of :mod:`peghole_mjx.control.kinematics` (rotation vector = axis x angle, rad).
 """
 
 from __future__ import annotations
@@ -20,6 +20,8 @@ from collections.abc import Sequence
 import mujoco
 import numpy as np
 
+from peghole_mjx.rotations import rot_from_rotvec, rotvec_from_mat
+
 __all__ = [
     "impedance_torque",
     "impedance_torque_c",
@@ -28,32 +30,6 @@ __all__ = [
     "rotvec_from_mat",
     "tool_centre",
 ]
-
-
-def rotvec_from_mat(R: np.ndarray) -> np.ndarray:
-    """Rotation vector (axis * angle, rad) of a rotation matrix; smooth at zero angle.
-
-    ``R`` (..., 3, 3): any leading batch dimensions (one vector per matrix)."""
-    R = np.asarray(R)
-    s = 0.5 * np.stack(
-        [R[..., 2, 1] - R[..., 1, 2], R[..., 0, 2] - R[..., 2, 0], R[..., 1, 0] - R[..., 0, 1]],
-        axis=-1,
-    )
-    sin = np.linalg.norm(s, axis=-1)
-    cos = 0.5 * (np.trace(R, axis1=-2, axis2=-1) - 1.0)
-    angle = np.arctan2(sin, cos)
-    scale = np.where(sin > 1e-9, angle / np.maximum(sin, 1e-9), 1.0)
-    return s * scale[..., None]
-
-
-def rot_from_rotvec(v: np.ndarray) -> np.ndarray:
-    """Rotation matrix of a rotation vector (rad), Rodrigues' formula."""
-    th = float(np.linalg.norm(v))
-    if th < 1e-12:
-        return np.eye(3)
-    k = np.asarray(v) / th
-    K = np.array([[0.0, -k[2], k[1]], [k[2], 0.0, -k[0]], [-k[1], k[0], 0.0]])
-    return np.eye(3) + np.sin(th) * K + (1 - np.cos(th)) * K @ K
 
 
 def rot_z(a: float) -> np.ndarray:

@@ -17,7 +17,7 @@ Keys, and the choices made where Brax's defaults differ from the thesis (stack_n
 * ``learning_rate``: Adam, actor and critics: 3e-4 (SB3's default, which the thesis used;
   Brax's default is 1e-4).
 * ``discounting``: gamma. Under the outcome reward (training's default) its own discount,
-  ``env.reward_config.discount`` = 0.999 (:func:`load_train_config` takes it from there; any
+  ``env.reward_config.discount`` = 0.9995 (:func:`load_train_config` takes it from there; any
   other value is refused: the reward's ordering of outcomes holds at that discount,
   :mod:`peghole_mjx.envs.reward`); under the thesis's reward 0.99 as in the thesis. Brax's
   default 0.9 would shorten the horizon to about 10 steps (0.2 s), far shorter than an
@@ -29,6 +29,8 @@ Keys, and the choices made where Brax's defaults differ from the thesis (stack_n
   starting value when learned, 0.2 (Brax starts at 1, which swamps the per-step rewards).
 * ``hidden_layer_sizes``: MLP widths of actor and critics, (256, 256) as SB3's MlpPolicy;
   ``normalize_observations``: running mean/std normaliser, on.
+* ``critic``: the critics' network, ``mlp`` (Brax's, the default), ``layernorm`` or ``simba``
+  (:mod:`peghole_mjx.training.critics`; the actor and the losses are the same for all).
 * ``steps_per_call``: batched env steps per jitted call (progress-bar granularity), 25;
   ``seed``: 0; ``env_overrides``: flat env-config overrides (e.g. ``episode_length``).
 * The compliance strategy is an env config entry (``compliance_strategy``,
@@ -52,6 +54,7 @@ from typing import Any
 
 from peghole_mjx import envs, fileio
 from peghole_mjx.errors import CorruptFileError, UserInputError
+from peghole_mjx.training.critics import CRITICS
 from peghole_mjx.validation import MAX_HIDDEN_LAYERS, RANGES, check, dumps, load_json_object
 
 _PKG_CONFIGS = Path(__file__).resolve().parents[1] / "_train_configs"
@@ -89,6 +92,7 @@ class TrainConfig:
     alpha_init: float = 0.2
     hidden_layer_sizes: list[int] = field(default_factory=lambda: [256, 256])
     normalize_observations: bool = True
+    critic: str = "mlp"
     steps_per_call: int = 25
     seed: int = 0
     env_overrides: dict[str, Any] = field(default_factory=dict)
@@ -150,6 +154,10 @@ class TrainConfig:
             isinstance(self.normalize_observations, bool),
             f"normalize_observations must be true or false, got {self.normalize_observations!r}",
         )
+        need(
+            self.critic in CRITICS,
+            f"critic must be one of {list(CRITICS)}, got {self.critic!r}",
+        )
         need(isinstance(self.env, str), f"env must be a name, got {self.env!r}")
         need(self.profile in PROFILES, f"profile must be one of {list(PROFILES)}")
         need(
@@ -181,7 +189,7 @@ def _label(name: str) -> str:
 
 
 #: training config keys of older records, each read as what it became: ``compliance_strategy``
-#: (a field until 2026-12-02) is the env config entry of the same name
+#: (a field in records written before 2026-12-02) is the env config entry of the same name
 LEGACY_KEYS = ("compliance_strategy",)
 
 

@@ -62,7 +62,7 @@ from peghole_mjx.envs.metrics import EVAL_STATS, TOTAL_KEYS, TRAIN_STATS, summar
 from peghole_mjx.errors import UserInputError
 from peghole_mjx.lock import RunLock
 from peghole_mjx.policies import make_policy_fn, save_policy
-from peghole_mjx.provenance import provenance
+from peghole_mjx.provenance import commit, provenance
 from peghole_mjx.training import checkpoints
 from peghole_mjx.training.config import RUN_RECORD, TrainConfig, read_run_record, write_run_record
 from peghole_mjx.training.logs import CsvLog
@@ -382,7 +382,12 @@ class TrainingRun(Run):
         save_policy(folder, params, self._policy_meta(step), atomic=False)
 
     def _record(self) -> dict[str, Any]:
-        return {"config": self.cfg.as_dict(), "network": self.trainer.network, **provenance()}
+        return {
+            "config": self.cfg.as_dict(),
+            "network": self.trainer.network,
+            **provenance(),
+            "commit": commit(),
+        }
 
     def _policy_meta(self, step: int) -> dict[str, Any]:
         return policy_meta(self.cfg, self.trainer.network, step)
