@@ -168,16 +168,10 @@ def _run_experiment(out: Path) -> dict:
     return {"cells": cells}
 
 
-#: the cpu profile's training task and stop rule (decided 2026-12-02, before the demo run it
-#: governs). The demo's earlier training stage (RL + compliance strategy, the published rect
-#: recipe at 25 mm/s, 100k env steps on the ``mujoco`` engine) extracted 0 of 32 evaluation
-#: episodes on 2026-12-02. The committed time-to-success run on the same engine and profile
-#: (benchmarks/results/baselines/train_rect_mujoco_cpu-2core.json: RL without the compliance
-#: strategy, the action's full speed limit) reached 0.95 eval success at 49.6k env steps. So
-#: on the cpu profile the demo trains that task, up to the profile's 100k env steps, and stops
-#: at the first evaluation at or above this success rate. Other profiles train RL + CS. The
-#: reward is training's default (the outcome reward since 2026-12-04; the committed demo
-#: report of 2026-12-02 trained eq (4.4)).
+#: on the cpu profile the demo trains RL without the compliance strategy at the action's full
+#: speed limit and stops at the first evaluation at or above this success rate, because that is
+#: the task the committed time-to-success run learned within the profile's 100k env steps while
+#: RL + compliance strategy did not (docs/research/train_profiles.md, "The demo's training task").
 DEMO_CPU_STOP_AT_SUCCESS = 0.95
 
 

@@ -31,8 +31,9 @@ Steps (each also a command of its own):
 4. ``peghole evaluate rect`` (the committed pretrained policy vs the scripted baseline);
 5. ``report.md`` linking the figures.
 
-On a 2-core CPU it took 9 min 08 s with both compliance cells (one run, 2026-12-02, training
-stopped at 70.4k env steps with evaluation success 1.00; benchmarks/results/evals/demo_cpu-2core).
+Its wall clock on a 2-core CPU is in the one record of the suite and demo times,
+benchmarks/results/perf/suite_time_cpu-2core.json (docs/guide/development.md, "How long the
+suite takes"); the committed run's outputs are in benchmarks/results/evals/demo_cpu-2core.
 
 Rerun in place: ``demo.json`` in the output folder records each stage as started and, once
 complete, with the SHA-256 of every file it wrote. A rerun with the same ``--out`` reuses

@@ -1,13 +1,13 @@
 """The compliance-centre experiment in MuJoCo C (float64), one world at a time: the studies'
 name for the experiment's ``mujoco`` engine.
 
-Since 2026-12-02 the replica is no longer a second implementation: :func:`pull_c` is
+The replica is not a second implementation: :func:`pull_c` is
 :meth:`peghole_mjx.experiments.compliance.Extraction.trace` on the ``mujoco`` engine (the
 experiment's scene, keyframe start, F/T tare, command schedule, contact rule and law, the
-NumPy twin :func:`peghole_mjx.control.reference.impedance_torque`), with the same float64
-operations in the same order as the loop that lived here, so that the studies' committed
-traces reproduce bit for bit. Used by :mod:`benchmarks.studies.pull_speed`,
-:mod:`benchmarks.studies.friction_frontier` and :mod:`benchmarks.studies.contact_diagnosis`.
+NumPy twin :func:`peghole_mjx.control.reference.impedance_torque`), whose float64 operations
+are in the order that wrote the studies' committed traces, so that they reproduce bit for
+bit. Used by :mod:`benchmarks.studies.pull_speed`, :mod:`benchmarks.studies.friction_frontier`
+and :mod:`benchmarks.studies.contact_diagnosis`.
 """
 
 from __future__ import annotations

@@ -44,7 +44,7 @@ ordering) and the two-point region's length per L_C beside the oracle's::
 ``--engine`` chooses the engine of those rows (:data:`ENGINES`): ``mujoco`` (the default; every
 committed ``pull_speed_<plan>.json``) pulls each world in its own process and reads the
 extraction force from the per-step contact forces; ``mjx`` (the experiment's MJX-JAX engine,
-float64, since 2026-12-02) pulls each (cell, speed)'s worlds in one batch in this process and
+float64) pulls each (cell, speed)'s worlds in one batch in this process and
 reads F_z from the experiment's F/T record (``Extraction.run``), has no ``mu_eff``, and
 writes ``pull_speed_<plan>_engine_mjx.json`` unless ``--out`` is given.
 

@@ -92,9 +92,8 @@ class GeometrySetup:
       keeps the mouth normal horizontal and reads F_z 33-97 % above the quasi-static oracle,
       the mesh scene within 3 % (benchmarks/results/studies/capsule_fidelity.json).
 
-    Decided 2026-12-02: these were module tables (``LC_MM``, ``TIMESTEP_S``,
-    ``CONTACT_TIMECONST_S``, ``REPRESENTATION``) beside the config; as config fields a run
-    states and records them with its other settings (:func:`config_dict`), values unchanged.
+    They are config fields so that a run states and records them with its other settings
+    (:func:`config_dict`).
     """
 
     lc_mm: tuple[float, ...]
@@ -588,8 +587,8 @@ class Extraction:
     def _pull_world(self, world: dict[str, float], n: int, record: bool = True):
         """One world in MuJoCo C, float64, for ``n`` physics steps: its per-step trace (n,
         :data:`TRACE_COLUMNS`) and, with ``record``, its per-step record (n, :data:`REC`) and
-        statistics (6,). The float64 operations of the trace are those of the replica this loop
-        was (``benchmarks/studies/c_replica.py`` before 2026-12-02), in the same order. MuJoCo
+        statistics (6,). The float64 operations of the trace are those that wrote the studies'
+        committed traces, in the same order (:mod:`benchmarks.studies.c_replica`). MuJoCo
         C resets a diverged state itself, with a warning: from that step on the world has the
         NaN flag."""
         m, cfg, ctl = self.m, self.cfg, self.ctl

@@ -1,0 +1,306 @@
+"""How long the test suite and ``peghole demo`` take: the one record of both, and the docs
+text generated from it.
+
+The record is ``benchmarks/results/perf/suite_time_cpu-2core.json``. Each measurement in it
+carries its own device, versions, date, command, config and commit, and says where the figure
+was recorded; the file's top-level fields are those of the command that last wrote it
+(:func:`peghole_mjx.provenance.run_provenance`). The docs state these times only as
+:func:`texts` writes them: the block under "How long the suite takes" in
+``docs/guide/development.md`` is generated (``python -m benchmarks.tables``), and every other
+page that states a suite, CI or demo time states one of :func:`texts`' strings
+(``tests/test_suite_time.py``) or links to that block.
+
+* ``python -m benchmarks.perf.suite_time record`` writes the file from :data:`RECORDED` (the
+  figures measured before this record existed, each with its source) and keeps any
+  measurement added since;
+* ``python -m benchmarks.perf.suite_time measure [--label L] [--loaded] [-- CMD ...]`` runs
+  CMD (default the README's test command, :data:`SUITE_COMMAND`), times it and adds the
+  measurement (``--loaded``: other work shared the CPU, so it is shown but left out of the
+  free-CPU range).
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+from benchmarks.common import PERF_RESULTS, rel, table
+from peghole_mjx import fileio
+from peghole_mjx.provenance import run_provenance
+
+#: the committed record
+RESULT = PERF_RESULTS / "suite_time_cpu-2core.json"
+#: the README's test command, which CI runs verbatim
+SUITE_COMMAND = ["python3", "-m", "pytest", "-q", "-n", "2", "--dist", "loadfile"]
+#: the measurement kinds: a local suite run on a free CPU, one on a loaded CPU, a CI landing
+#: (all of ``.ci/run``), a demo run
+KINDS = ("suite", "suite_loaded", "ci", "demo")
+
+_SUITE_CONFIG = {
+    "workers": 2,
+    "dist": "loadfile",
+    "compile_cache": "cold",
+    "tree": "a git archive copy of the commit, as CI's clone",
+}
+_CI_UNKNOWN = {
+    "device": "unknown: CI's machine is not recorded by the landing report",
+    "versions": "unknown: CI installs what pyproject.toml allows; its versions are not recorded",
+    "commit": "unknown: the landing report gives CI's time, not the commit of the tree",
+}
+_CI_COMMAND = ".ci/run (pip install -e .[dev], the suite, ruff check, ruff format --check, "
+_CI_COMMAND += "tests/test_playground.py)"
+
+#: the figures measured before this record existed, with where each was recorded
+RECORDED: list[dict] = [
+    {
+        "kind": "suite",
+        "label": "free 2-core CPU",
+        "wall_s": 1572,
+        "device": "cpu (2 cores, x86_64)",
+        "versions": {
+            "mujoco": "4.0.0",
+            "mujoco-mjx": "3.17.0",
+            "jax": "0.10.2",
+            "brax": "0.14.2",
+            "pytest-xdist": "3.8.0",
+        },
+        "date": "2026-12-03",
+        "command": " ".join(SUITE_COMMAND),
+        "config": _SUITE_CONFIG,
+        "commit": "c468cdd4170f7db521fcbcc7e6c2c872aebb60c0",
+        "outcome": "961 passed, 15 skipped, 0 failed; largest process 2.5 GB",
+        "source": "commit 76ee425 (its message; it changes only README.md and "
+        "docs/guide/development.md, so the tree measured is its parent c468cdd)",
+    },
+    {
+        "kind": "suite",
+        "label": "free 2-core CPU, a slower machine (AMD EPYC)",
+        "wall_s": 2160,
+        "device": "cpu (2 cores, x86_64)",
+        "versions": {"mujoco": "4.0.1", "mujoco-mjx": "3.17.0", "jax": "0.10.2", "brax": "0.14.2"},
+        "date": "2026-12-03",
+        "command": " ".join(SUITE_COMMAND),
+        "config": _SUITE_CONFIG,
+        "commit": "089b5c8236800d5353e4926198c01ef5ee7b3bfa",
+        "outcome": "not recorded",
+        "source": "commit 280ca0f (its message: 36 min 00 s before the changes of b281567)",
+    },
+    {
+        "kind": "suite",
+        "label": "free 2-core CPU, the same slower machine",
+        "wall_s": 1858,
+        "device": "cpu (2 cores, x86_64)",
+        "versions": {"mujoco": "4.0.1", "mujoco-mjx": "3.17.0", "jax": "0.10.2", "brax": "0.14.2"},
+        "date": "2026-12-03",
+        "command": " ".join(SUITE_COMMAND),
+        "config": _SUITE_CONFIG,
+        "commit": "b281567b6f2f09c8f75a480b4d12ac4a51753766",
+        "outcome": "962 passed, 15 skipped",
+        "source": "commit 280ca0f (its message: 30 min 58 s after the changes of b281567)",
+    },
+    {
+        "kind": "suite_loaded",
+        "label": "loaded 2-core CPU (load 3-8 from a training run for the first minutes)",
+        "wall_s": 3011,
+        "device": "cpu (2 cores, x86_64)",
+        "versions": {
+            "mujoco": "4.0.1",
+            "mujoco-mjx": "3.17.0",
+            "jax": "0.10.2",
+            "brax": "0.14.2",
+            "warp-lang": "1.18.0",
+        },
+        "date": "2026-12-05",
+        "command": " ".join(SUITE_COMMAND),
+        "config": {**_SUITE_CONFIG, "warp_lang_installed": True},
+        "commit": "unknown: the uncommitted tree that a908a0c then mended (its stale tests)",
+        "outcome": "1154 passed, 13 failed, 3 errors, 15 skipped (tests made stale by the "
+        "changes, fixed in a908a0c)",
+        "source": "commit a908a0c (its message) and the change's closing record of 2026-12-05",
+    },
+    *[
+        {
+            "kind": "ci",
+            "label": "all of `.ci/run`",
+            "wall_s": wall,
+            **_CI_UNKNOWN,
+            "date": date,
+            "command": _CI_COMMAND,
+            "config": {"what": "all of .ci/run; how much of it was the suite is not recorded"},
+            "outcome": "passed",
+            "source": "the landing report (CI passed in N s); date: the day the landed "
+            "change was closed",
+        }
+        for wall, date in (
+            (1309, "2026-12-03"),
+            (1343, "2026-12-03"),
+            (1493, "2026-12-03"),
+            (2201, "2026-12-05"),
+        )
+    ],
+    {
+        "kind": "demo",
+        "label": "2-core CPU shared with two short jobs (140 % CPU to the demo)",
+        "wall_s": 548,
+        "device": "cpu (2 cores, x86_64)",
+        "versions": {
+            "python": "3.11.7",
+            "peghole_mjx": "0.1.0",
+            "mujoco": "4.0.0",
+            "mujoco-mjx": "3.17.0",
+            "jax": "0.10.2",
+            "jaxlib": "0.10.2",
+            "brax": "0.14.2",
+            "numpy": "2.4.6",
+        },
+        "date": "2026-12-02T21:51Z",
+        "command": "/usr/bin/time -v peghole demo --out /tmp/demo_run",
+        "config": {
+            "profile": "auto -> cpu",
+            "engine": "mujoco",
+            "stop": "first evaluation >= 0.95 (demo.DEMO_CPU_STOP_AT_SUCCESS)",
+            "reward": "eq (4.4), training's default then",
+            "compliance_cells": ["default", "r1_regime"],
+        },
+        "commit": "unknown: not recorded by the run; its files were committed in 6ef1e0d",
+        "outcome": "peak memory 2.2 GB; eval success 1.00 at 70.4k env steps",
+        "source": "benchmarks/results/evals/demo_cpu-2core/README.md (its run.json, "
+        "summary.json: device, versions, date)",
+    },
+]
+
+
+def load(path: Path = RESULT) -> dict:
+    """The committed record."""
+    return json.loads(Path(path).read_text())
+
+
+def minutes(wall_s: float) -> str:
+    """``548`` -> ``9 min 08 s``."""
+    m, s = divmod(round(wall_s), 60)
+    return f"{m} min {s:02d} s"
+
+
+def seconds(wall_s: float) -> str:
+    """``2201`` -> ``2,201 s``."""
+    return f"{round(wall_s):,} s"
+
+
+def _of(rec: dict, kind: str) -> list[dict]:
+    return [m for m in rec["measurements"] if m["kind"] == kind]
+
+
+def texts(rec: dict | None = None) -> dict[str, str]:
+    """The strings the docs may state, each computed from the record:
+
+    * ``suite``: the free-CPU range, ``26-36 min`` (whole minutes, floor and ceiling);
+    * ``suite_date``: its dates; ``ci_latest``, ``ci_latest_date``: the newest CI landing;
+    * ``ci_earlier``: the landings before it (``1,309, 1,343 and 1,493 s``);
+    * ``demo``, ``demo_date``: the newest demo run, ``9 min 08 s``.
+    """
+    rec = load() if rec is None else rec
+    suite = [m["wall_s"] for m in _of(rec, "suite")]
+    suite_dates = sorted({m["date"][:10] for m in _of(rec, "suite")})
+    ci = sorted(_of(rec, "ci"), key=lambda m: m["date"])
+    demo = sorted(_of(rec, "demo"), key=lambda m: m["date"])[-1]
+    earlier = [seconds(m["wall_s"]) for m in ci[:-1]]
+    return {
+        "suite": f"{math.floor(min(suite) / 60)}-{math.ceil(max(suite) / 60)} min",
+        "suite_date": " to ".join(dict.fromkeys([suite_dates[0], suite_dates[-1]])),
+        "ci_latest": seconds(ci[-1]["wall_s"]),
+        "ci_latest_date": ci[-1]["date"][:10],
+        "ci_earlier": " and ".join(filter(None, [", ".join(earlier[:-1]), *earlier[-1:]])),
+        "demo": minutes(demo["wall_s"]),
+        "demo_date": demo["date"][:10],
+    }
+
+
+@table("suite_time")
+def suite_time_table() -> str:
+    """The block under "How long the suite takes" (docs/guide/development.md)."""
+    rec = load()
+    t = texts(rec)
+    lines = [
+        f"**The suite takes {t['suite']} on a free 2-core CPU** (cold compile cache, "
+        f"{t['suite_date']}) **and CI's latest landing took {t['ci_latest']}** for all of "
+        f"`.ci/run` ({t['ci_latest_date']}; before it {t['ci_earlier']}). **`peghole demo` "
+        f"took {t['demo']}** ({t['demo_date']}). Each measurement with its device, versions, "
+        f"command, commit and source: [`{RESULT.name}`]({rel(RESULT)}).",
+        "",
+        "| what | wall clock | date | commit | outcome |",
+        "|---|---|---|---|---|",
+    ]
+    for m in rec["measurements"]:
+        wall = minutes(m["wall_s"]) if m["kind"] != "ci" else seconds(m["wall_s"])
+        commit = m["commit"][:7] if not m["commit"].startswith("unknown") else "unknown"
+        what = {
+            "suite": "suite",
+            "suite_loaded": "suite, loaded (not in the range)",
+            "ci": "CI",
+            "demo": "demo",
+        }[m["kind"]]
+        lines.append(
+            f"| {what}: {m['label']} | {wall} | {m['date'][:10]} | {commit} | {m['outcome']} |"
+        )
+    return "\n".join(lines)
+
+
+def record(measurements: list[dict], argv: list[str], out: Path = RESULT) -> dict:
+    """Write ``out``: the ``measurements`` under the provenance of the command ``argv``."""
+    rec = {
+        "what": "wall-clock times of the test suite, of CI's landings and of peghole demo",
+        **run_provenance(argv),
+        "config": "see measurements; each measurement records its own device, versions, "
+        "date, command, config and commit, and its source",
+        "measurements": measurements,
+    }
+    fileio.write_text(out, json.dumps(rec, indent=1) + "\n")
+    return rec
+
+
+def measure(command: list[str], label: str, loaded: bool = False) -> dict:
+    """Run ``command``, timing it: one measurement (its own :func:`run_provenance`)."""
+    t0 = time.perf_counter()
+    rc = subprocess.run(command, check=False).returncode
+    wall = time.perf_counter() - t0
+    prov = run_provenance(command)
+    return {
+        "kind": "suite_loaded" if loaded else "suite",
+        "label": label,
+        "wall_s": round(wall, 1),
+        **{k: prov[k] for k in ("device", "versions", "date", "command")},
+        "config": {"loaded": loaded},
+        "commit": prov["commit"],
+        "outcome": f"exit status {rc}",
+        "source": "python -m benchmarks.perf.suite_time measure",
+    }
+
+
+def main(argv: list[str] | None = None) -> int:
+    argv = sys.argv[1:] if argv is None else argv
+    p = argparse.ArgumentParser(prog="python -m benchmarks.perf.suite_time", description=__doc__)
+    sub = p.add_subparsers(dest="cmd", required=True)
+    sub.add_parser("record", help="write the record from the recorded figures (keeps new ones)")
+    m = sub.add_parser("measure", help="time a command (default the suite) and add it")
+    m.add_argument("--label", default="free 2-core CPU")
+    m.add_argument("--loaded", action="store_true", help="other work shared the CPU")
+    m.add_argument("command", nargs="*", help="after --: the command (default the suite)")
+    p.add_argument("--out", type=Path, default=RESULT)
+    args = p.parse_args(argv)
+    full = ["python", "-m", "benchmarks.perf.suite_time", *argv]
+    old = load(args.out)["measurements"] if args.out.exists() else []
+    added = [x for x in old if x.get("source") == "python -m benchmarks.perf.suite_time measure"]
+    if args.cmd == "measure":
+        added.append(measure(args.command or SUITE_COMMAND, args.label, args.loaded))
+    rec = record(RECORDED + added, full, args.out)
+    print(f"{rel(args.out)}: {len(rec['measurements'])} measurements; {texts(rec)}")
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
