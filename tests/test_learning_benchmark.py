@@ -251,3 +251,19 @@ def test_sb3_actor_as_a_jax_function_and_the_compact_replay_buffer(tmp_path):
     assert (b.pos, b.full) == (a.pos, a.full) == (120, False)
     for k in ("observations", "next_observations", "actions", "rewards", "dones", "timeouts"):
         assert np.array_equal(getattr(a, k), getattr(b, k)), k
+
+
+def test_finished_only_trains_nothing_and_names_the_pending_runs(tmp_path, capsys):
+    """``--finished-only`` reports the finished runs (none here) to ``learning_partial.*``,
+    naming every pending (task, seed), and starts no run; other stacks are refused."""
+    out = tmp_path / "bench"
+    argv = ["--out", str(out), "--tasks", "RectExtract", "--seeds", "100", "101"]
+    assert lb.main([*argv, "--finished-only"]) == 0
+    doc = json.loads((out / "learning_partial.json").read_text())
+    assert doc["partial"] is True and doc["tasks"] == []
+    assert doc["pending"] == [{"task": "RectExtract", "seed": s} for s in (100, 101)]
+    assert all(doc[k] for k in PROVENANCE)
+    assert not (out / "runs").exists() and not (out / "learning.json").exists()
+    capsys.readouterr()
+    assert lb.main([*argv, "--finished-only", "--stack", "sb3"]) == 2
+    assert "--finished-only reports our stack's runs only" in capsys.readouterr().err

@@ -239,12 +239,17 @@ def train_config(task: str, seed: int, args):
     return load_train_config(task, args.profile, over)
 
 
+def _run_dir(out: Path, task: str, seed: int) -> Path:
+    """Our stack's run folder of ``task`` and ``seed`` under ``out``."""
+    return out / "runs" / task / f"seed_{seed}"
+
+
 def run_seed(task: str, seed: int, args, out: Path) -> dict[str, Any]:
     """Train (or resume, or skip when finished) one seed and evaluate its final policy."""
     if args.stack != "ours":  # an SB3 stack: its run folder under runs_<stack>/
         cfg, run_dir, final = stacks.run_seed(args.stack, task, seed, args, out)
         return {"config": cfg, **seed_record(run_dir, final)}
-    run_dir = out / "runs" / task / f"seed_{seed}"
+    run_dir = _run_dir(out, task, seed)
     cfg = train_config(task, seed, args)
     if (run_dir / "run.json").exists():
         recorded = TrainConfig.from_dict(json.loads((run_dir / "run.json").read_text())["config"])
@@ -313,6 +318,12 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--final-episodes", type=int, default=256, help="final policy's episodes")
     p.add_argument("--final-seed", type=int, default=20_000, help="seed of the final episodes")
     p.add_argument("--set", dest="sets", action="append", help="KEY=VALUE training override")
+    p.add_argument(
+        "--finished-only",
+        action="store_true",
+        help="train nothing: report the seeds whose runs have finished (their final policies "
+        "evaluated if not yet) to <stem>_partial.json/.csv, naming the pending ones (ours only)",
+    )
     args = p.parse_args(argv)
     command = ["python", "-m", "benchmarks.evals.learning", *(argv or sys.argv[1:])]
     if args.tasks is None:
@@ -321,6 +332,8 @@ def main(argv: list[str] | None = None) -> int:
     args.command = command
     try:
         stacks.check_args(args)
+        if args.finished_only and args.stack != "ours":
+            raise UserInputError("--finished-only reports our stack's runs only (--stack ours)")
         return _run(args, command)
     except UserInputError as exc:
         print(f"learning: error: {exc}", file=sys.stderr)
@@ -336,13 +349,19 @@ def _run(args, command: list[str]) -> int:
         run_provenance(command) if args.stack == "ours" else stacks.provenance(args.stack, command)
     )
     units = [(t, s) for t in args.tasks for s in args.seeds]
-    results: dict[str, list[dict]] = {t: [] for t in args.tasks}
+    pending = []
+    if args.finished_only:  # a run has finished when it wrote its summary.json
+        pending = [(t, s) for t, s in units if not (_run_dir(out, t, s) / "summary.json").exists()]
+        units = [u for u in units if u not in pending]
+    results: dict[str, list[dict]] = {t: [] for t, _ in units}
     for task, seed in tqdm(units, desc="learning benchmark (task x seed)", file=sys.stderr):
         results[task].append(run_seed(task, seed, args, out))
     tasks = []
     # ours keeps its file names (learning.json, curves_TASK.png); a stack its own beside them
     stem = "learning" if args.stack == "ours" else f"learning_{args.stack}"
     curves = "curves_" if args.stack == "ours" else f"curves_{args.stack}_"
+    if args.finished_only:
+        stem, curves = f"{stem}_partial", f"{curves}partial_"
     for task, per_seed in results.items():
         summary = task_summary(task, per_seed)
         cfg = per_seed[0]["config"]
@@ -374,6 +393,9 @@ def _run(args, command: list[str]) -> int:
         "eval_every": args.eval_every,
         "eval_episodes": args.eval_episodes,
         "tasks": tasks,
+        # --finished-only: the (task, seed) runs not finished when this file was written
+        "partial": bool(args.finished_only),
+        "pending": [{"task": t, "seed": s} for t, s in pending],
         # the provenance rule (benchmarks/provenance_rule.py): each task's full training config
         "config": "see tasks; each task's full training config is its entry's 'config'",
         **prov,
