@@ -176,6 +176,6 @@ def test_cpu_demo_trains_the_time_to_success_task_and_stops_at_its_threshold():
     full = demo._train_config("full", {"env.engine": "mjx"})
     assert full.env_overrides["compliance_strategy"] is True
     assert full.env_overrides["action.max_speed_m_s"] == 0.025
-    assert demo.training_task(full) == "RL + compliance strategy, outcome reward"
-    assert cpu.env_overrides["reward_config.kind"] == "outcome"  # training's default reward
+    assert demo.training_task(full) == "RL + compliance strategy, thesis reward"
+    assert cpu.env_overrides["reward_config.kind"] == "thesis"  # training's default reward
     assert demo.DEMO_CPU_STOP_AT_SUCCESS == 0.95

@@ -28,6 +28,8 @@ TINY = {
     "num_timesteps": 80,
     "env.episode_length": 25,
     "env.engine": "mujoco",
+    # the reward whose time-outs are truncations (training's default pays eq (4.4))
+    "env.reward_config.kind": "outcome",
 }
 
 

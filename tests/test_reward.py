@@ -173,17 +173,18 @@ def test_the_thesis_reward_takes_any_discount_and_an_unknown_kind_is_refused():
         envs.load("RectExtract", config_overrides={"reward_config.kind": "best"})
 
 
-def test_training_takes_the_outcome_reward_and_its_discount_by_default():
+def test_training_pays_eq_4_4_by_default_and_the_outcome_reward_at_its_discount():
     from peghole_mjx.errors import UserInputError
     from peghole_mjx.training.config import load_train_config
 
-    cfg = load_train_config("RectExtract", "cpu")
-    assert cfg.env_overrides["reward_config.kind"] == "outcome"
-    assert cfg.discounting == envs.get_default_config("RectExtract").reward_config.discount
-    thesis = load_train_config("RectExtract", "cpu", {"env.reward_config.kind": "thesis"})
+    thesis = load_train_config("RectExtract", "cpu")
+    assert thesis.env_overrides["reward_config.kind"] == "thesis"
     assert thesis.discounting == 0.99
+    outcome = {"env.reward_config.kind": "outcome"}
+    cfg = load_train_config("RectExtract", "cpu", outcome)
+    assert cfg.discounting == envs.get_default_config("RectExtract").reward_config.discount
     with pytest.raises(UserInputError, match="differs from the outcome reward's discount"):
-        load_train_config("RectExtract", "cpu", {"discounting": 0.99})
+        load_train_config("RectExtract", "cpu", {**outcome, "discounting": 0.99})
 
 
 @pytest.mark.slow

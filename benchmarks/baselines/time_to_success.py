@@ -330,7 +330,7 @@ def main(argv: list[str] | None = None) -> int:
         "env.action.max_speed_m_s": LIMITS.max_speed_m_s,
         "env.engine": args.engine,
         # the committed time-to-success records trained the thesis's eq (4.4); kept so that
-        # the plain command reproduces them (the outcome reward is training's default)
+        # the plain command reproduces them whatever training's default reward is
         "env.reward_config.kind": "thesis",
     }
     overrides.update(parse_overrides(args.sets))

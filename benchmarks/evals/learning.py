@@ -72,6 +72,7 @@ from benchmarks.common import parse_overrides, write_rows
 from benchmarks.evals import learning_stacks as stacks
 from peghole_mjx import fileio
 from peghole_mjx.envs.engines import engine_label, engine_overrides
+from peghole_mjx.envs.reward import REWARD_KINDS
 from peghole_mjx.errors import UserInputError
 from peghole_mjx.provenance import run_provenance
 from peghole_mjx.training.config import TrainConfig, load_train_config
@@ -319,6 +320,13 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--final-seed", type=int, default=20_000, help="seed of the final episodes")
     p.add_argument("--set", dest="sets", action="append", help="KEY=VALUE training override")
     p.add_argument(
+        "--reward",
+        choices=REWARD_KINDS,
+        default="outcome",
+        help="the reward the learners train on (ours, sb3; default outcome, the protocol's; the "
+        "seed stack pays eq (4.4) always)",
+    )
+    p.add_argument(
         "--finished-only",
         action="store_true",
         help="train nothing: report the seeds whose runs have finished (their final policies "
@@ -330,6 +338,10 @@ def main(argv: list[str] | None = None) -> int:
         allowed = stacks.STACK_TASKS.get(args.stack)
         args.tasks = list(allowed if allowed is not None else TASKS)
     args.command = command
+    if args.stack != "seed" and not any(
+        s.startswith("env.reward_config.kind=") for s in args.sets or []
+    ):  # the protocol's reward, whatever training's default is
+        args.sets = [*(args.sets or []), f"env.reward_config.kind={args.reward}"]
     try:
         stacks.check_args(args)
         if args.finished_only and args.stack != "ours":

@@ -18,7 +18,7 @@ Usage::
         --set env.reward_config.kind=thesis --out runs/rect_nocs
 
 The C4 claims are about the thesis's reward, eq (4.4): its runs set
-``env.reward_config.kind=thesis`` (training's default is the outcome reward; the committed C4
+``env.reward_config.kind=thesis`` (stated whatever training's default is; the committed C4
 runs trained eq (4.4), docs/research/rl_vs_rlcs.md).
     python -m benchmarks.evals.rl_vs_rlcs --cs runs/rect_cs --no-cs runs/rect_nocs
 

@@ -114,8 +114,8 @@ def base_config(preset: str) -> config_dict.ConfigDict:
         reward_config=config_dict.create(
             # "thesis": eq (4.4) as the thesis wrote it (the env's own default and the
             # reproduction studies'); "outcome": every extraction returns more than every
-            # failure, less force and time more (training's default, TRAINING_ENV_DEFAULTS;
-            # envs/reward.py says why and how)
+            # failure, less force and time more (opt-in: it did not learn RectExtract,
+            # docs/research/learning.md; envs/reward.py says why and how)
             kind="thesis",
             **REWARD_WEIGHTS,
             force_scale_N=LIMITS.max_force_N[0],  # |f_xy| is measured in units of this
