@@ -7,6 +7,7 @@ Each group module exposes ``add_parser(subparsers)``, which adds its parser and 
 from __future__ import annotations
 
 import argparse
+import contextlib
 import importlib
 import signal
 import sys
@@ -14,7 +15,7 @@ import threading
 import traceback
 
 import peghole_mjx._mjx  # noqa: F401  (first: keeps mjx's import chatter off stdout)
-from peghole_mjx import __version__, runtime
+from peghole_mjx import __version__, lock, runtime
 from peghole_mjx.errors import REPORTED_ERRORS
 
 #: command group -> module that defines it
@@ -28,6 +29,23 @@ GROUPS: dict[str, str] = {
     "demo": "peghole_mjx.demo_cli",
     "export": "peghole_mjx.export_cli",  # policy -> ONNX for a robot (peghole_mjx.deploy)
 }
+
+
+#: commands whose ``--out`` file the dispatcher writes through :func:`lock.writing_files` (one
+#: writer, the program's own file, a file of other parameters refused; decided 2026-12-05):
+#: their modules write it with :mod:`peghole_mjx.fileio`, and have no ``--force``
+FILE_OUTPUTS = {"evaluate": "peghole evaluate", "compare": "peghole compare"}
+
+
+def _output_guard(args: argparse.Namespace):
+    """:func:`lock.writing_files` of the ``--out`` file of a command in :data:`FILE_OUTPUTS`
+    (else nothing)."""
+    command = FILE_OUTPUTS.get(getattr(args, "group", None))
+    out = getattr(args, "out", None)
+    if command is None or out is None:
+        return contextlib.nullcontext()
+    params = lock.command_parameters(args, drop=("group",))
+    return lock.writing_files({out: params}, command, force=False, has_force=False)
 
 
 #: where a traceback (a bug, not a user error) should be reported
@@ -121,7 +139,8 @@ def _run(argv: list[str] | None) -> int:
         parser.print_help()
         return 2
     try:
-        return int(args.func(args) or 0)
+        with _output_guard(args):
+            return int(args.func(args) or 0)
     except REPORTED_ERRORS as exc:
         print(f"peghole: error: {_one_line(exc)}", file=sys.stderr)
         return 2

@@ -13,6 +13,13 @@ so a folder of the user's with such a name is never touched. A folder that holds
 program cannot prove it wrote (not in its manifest; in a folder written before the manifest
 existed, a name the writer does not write) is not replaced: the command is refused in one
 line naming those files (:func:`foreign_files`), and nothing is deleted.
+
+**Files written one by one** (decided 2026-12-05: ``evaluate --out``, ``compare --out``,
+``models check --out``, ``models build``, ``analyze figure``, ``analyze jamming --out``): each
+gets a record beside it, ``.NAME.peghole.json`` (:func:`write_file_record`: the command, its
+parameters and the file's SHA-256). An existing file is replaced only when its record proves
+it the program's, unchanged since (:func:`check_file_replaceable`); a file of other
+parameters only with ``--force``; a file without a matching record never.
 """
 
 from __future__ import annotations
@@ -213,17 +220,153 @@ def owned_files(folder: str | Path) -> set[str] | None:
 
 
 def write_owner_manifest(
-    folder: str | Path, files: Iterable[str] | None = None, hashed: Iterable[str] = ()
+    folder: str | Path,
+    files: Iterable[str] | None = None,
+    hashed: Iterable[str] = (),
+    parameters: dict | None = None,
 ) -> None:
     """Record in ``folder`` the files the program wrote there (default: every file now in
-    it), and the SHA-256 of those named in ``hashed`` (:func:`recorded_sha256`)."""
+    it), the SHA-256 of those named in ``hashed`` (:func:`recorded_sha256`) and the
+    ``parameters`` they were made with (:func:`recorded_parameters`)."""
     folder = Path(folder)
     names = sorted(set(_files_under(folder) if files is None else files) - {OWNER_MANIFEST})
     doc: dict = {"written_by": "peghole_mjx", "files": names}
     hashes = {n: sha256_file(folder / n) for n in sorted(hashed) if (folder / n).is_file()}
     if hashes:
         doc["sha256"] = hashes
+    if parameters is not None:
+        doc["parameters"] = plain_json(parameters)
     write_text(folder / OWNER_MANIFEST, json.dumps(doc, indent=1) + "\n")
+
+
+def plain_json(obj):
+    """``obj`` as plain JSON values (paths and other objects as their text, tuples as lists),
+    so that parameters compare equal after a round trip through a file."""
+    return json.loads(json.dumps(obj, default=str, sort_keys=True))
+
+
+def recorded_parameters(folder: str | Path) -> dict | None:
+    """The parameters :data:`OWNER_MANIFEST` of ``folder`` records (None: none recorded)."""
+    try:
+        doc = json.loads((Path(folder) / OWNER_MANIFEST).read_text())
+    except (OSError, ValueError, RecursionError):
+        return None
+    params = doc.get("parameters") if isinstance(doc, dict) else None
+    return params if isinstance(params, dict) else None
+
+
+def differences(a, b, prefix: str = "") -> list[str]:
+    """The keys (dotted) whose values differ between two JSON trees."""
+    if isinstance(a, dict) and isinstance(b, dict):
+        out = []
+        for k in sorted(set(a) | set(b), key=str):
+            out += differences(a.get(k), b.get(k), f"{prefix}{k}.")
+        return out
+    return [] if a == b else [prefix.rstrip(".") or "parameters"]
+
+
+def check_same_parameters(
+    folder: str | Path, parameters: dict, force: bool, what: str = "--out", has_force: bool = True
+) -> None:
+    """A folder of results written whole (a task folder) is replaced by a run of other
+    ``parameters`` only with ``force`` (decided 2026-12-05): refused in one line naming the
+    differing keys, or saying none were recorded (a folder written before then)."""
+    folder = Path(folder)
+    if force or not folder.is_dir() or not any(folder.iterdir()):
+        return
+    recorded = recorded_parameters(folder)
+    mine = plain_json(parameters)
+    if recorded == mine:
+        return
+    diff = describe_files(differences(mine, recorded), 4)
+    why = (
+        "its parameters were not recorded (written before 2026-12-05)"
+        if recorded is None
+        else f"made with other parameters (differing: {diff})"
+    )
+    advice = "pass --force to replace it, or " if has_force else ""
+    raise UserInputError(
+        f"{what} {folder} holds results {why}: nothing was written; {advice}choose another folder"
+    )
+
+
+#: the record beside a file the program wrote one by one: ``.NAME`` + this
+RECORD_SUFFIX = ".peghole.json"
+
+
+def record_path(path: str | Path) -> Path:
+    """The record of the file ``path`` (:func:`write_file_record`): ``.NAME.peghole.json``."""
+    path = Path(path)
+    return path.with_name(f".{path.name}{RECORD_SUFFIX}")
+
+
+def write_file_record(path: str | Path, command: str, parameters: dict) -> None:
+    """Record beside ``path`` (just written by ``command``) that the program wrote it: the
+    command, its ``parameters`` and the file's SHA-256."""
+    path = Path(path)
+    doc = {
+        "written_by": "peghole_mjx",
+        "file": path.name,
+        "command": command,
+        "parameters": plain_json(parameters),
+        "sha256": sha256_file(path),
+    }
+    write_text(record_path(path), json.dumps(doc, indent=1) + "\n")
+
+
+def file_record(path: str | Path) -> dict | None:
+    """The record of ``path`` when it proves the file the program's (its SHA-256 matches the
+    file's bytes); else None."""
+    path = Path(path)
+    try:
+        doc = json.loads(record_path(path).read_text())
+        if not isinstance(doc, dict) or doc.get("written_by") != "peghole_mjx":
+            return None
+        return doc if doc.get("sha256") == sha256_file(path) else None
+    except (OSError, ValueError, RecursionError):
+        return None
+
+
+def check_file_replaceable(
+    path: str | Path,
+    parameters: dict,
+    force: bool = False,
+    what: str = "--out",
+    has_force: bool = True,
+) -> None:
+    """Refuse (one line) to replace the existing file ``path`` unless the program wrote it
+    (its record, :func:`file_record`, or the manifest of its folder) and it is unchanged
+    since; one written with other ``parameters`` only with ``force``. Nothing is touched."""
+    path = Path(path)
+    if not (path.exists() or path.is_symlink()):
+        return
+    if path.is_dir():
+        raise UserInputError(f"{what} {path} is a folder, not a file")
+    rec = file_record(path)
+    recorded = rec.get("parameters") if rec else None
+    if rec is None:
+        parent = path.parent
+        listed = path.name in (owned_files(parent) or ())
+        sha = recorded_sha256(parent, path.name)
+        if not listed or (sha is not None and sha != sha256_file(path)):
+            raise UserInputError(
+                f"{what} {path} is a file peghole_mjx did not write, or one changed since it "
+                f"was written (no matching record {record_path(path).name}): nothing was "
+                "written; give another path, or move it away"
+            )
+    mine = plain_json(parameters)
+    if recorded == mine or force:
+        return
+    why = (
+        "its parameters were not recorded"
+        if recorded is None
+        else f"differing: {describe_files(differences(mine, recorded), 4)}"
+    )
+    advice = "pass --force to replace it, or " if has_force else ""
+    raise UserInputError(
+        f"{what} {path} holds results of other parameters ({why}): nothing was written; "
+        f"{advice}give another path"
+    )
 
 
 def recorded_sha256(folder: str | Path, name: str) -> str | None:
@@ -253,10 +396,15 @@ def foreign_files(folder: str | Path, known: Iterable[str] = ()) -> list[str]:
             return rel in owned or rel == OWNER_MANIFEST
         return rel.split("/", 1)[0] in known | {OWNER_MANIFEST}
 
+    def recorded(rel: str) -> bool:  # a file written one by one, with its record
+        rec = re.fullmatch(r"((?:.*/)?)\.([^/]+)" + re.escape(RECORD_SUFFIX), rel)
+        name = rec[1] + rec[2] if rec else rel
+        return file_record(folder / name) is not None
+
     out = []
     for rel in _files_under(folder):
         left = re.fullmatch(r"((?:.*/)?)\.([^/]+)\.\d+\.tmp", rel)  # an atomic write's leftover
-        if ours(rel) or (left and ours(left[1] + left[2])):
+        if ours(rel) or (left and ours(left[1] + left[2])) or recorded(rel):
             continue
         out.append(rel)
     return out
@@ -285,19 +433,20 @@ def replace_dir(
     known: Iterable[str] | None = None,
     owned: Iterable[str] | None = None,
     hashed: Iterable[str] = (),
+    parameters: dict | None = None,
 ) -> None:
     """Move a completely written folder ``tmp`` (made by :func:`temp_dir_beside`) onto
     ``final``, replacing an old one only when every file in it is the program's.
 
     ``tmp`` gets an :data:`OWNER_MANIFEST` of ``owned`` (default: every file in it; with
-    the SHA-256 of the files named in ``hashed``). An
+    the SHA-256 of the files named in ``hashed`` and the run's ``parameters``). An
     existing ``final`` with a file the program cannot prove it wrote (:func:`foreign_files`;
     ``known`` default: the names in ``tmp``) is refused in one line: ``tmp`` is removed and
     ``final`` left as it was. Otherwise ``final`` is renamed to a unique name beside it,
     ``tmp`` renamed onto ``final``, and the old folder removed."""
     tmp, final = Path(tmp), Path(final)
     names = {p.name for p in tmp.iterdir()}
-    write_owner_manifest(tmp, owned, hashed)
+    write_owner_manifest(tmp, owned, hashed, parameters)
     for f in tmp.iterdir():
         if f.is_file() and not f.is_symlink():
             with open(f, "rb") as fh:

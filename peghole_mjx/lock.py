@@ -17,6 +17,9 @@ file if that run is known to be over.
 folder written whole, a result file): ``PARENT/.NAME.lock`` beside it, taken before the work
 and held until the output is in place, so that a second writer of the same output is refused
 in one line naming the holder (PID, host, command) instead of both reporting success.
+:func:`writing_files` (decided 2026-12-05) is that lock with the ownership rule of files
+written one by one (:func:`peghole_mjx.fileio.check_file_replaceable`): every such writer
+goes through it.
 """
 
 from __future__ import annotations
@@ -27,8 +30,10 @@ import os
 import socket
 import sys
 import time
+from collections.abc import Iterator
 from pathlib import Path
 
+from peghole_mjx import fileio
 from peghole_mjx.errors import UserInputError
 
 LOCK_NAME = "run.lock"
@@ -194,3 +199,70 @@ class OutputLock(RunLock):
             f"{rec['pid']} on {rec.get('host', '?')}, since {rec.get('since', '?')}): nothing "
             f"was written; wait for it to end, or delete {self.path} if it is known to be over"
         )
+
+
+@contextlib.contextmanager
+def writing_files(
+    files: dict[Path, dict],
+    command: str,
+    force: bool = False,
+    what: str = "--out",
+    lock: str | Path | None = None,
+    has_force: bool = True,
+) -> Iterator[None]:
+    """Write ``files`` (path -> the parameters it is made with) as their one writer, under the
+    program's ownership rule (decided 2026-12-05): the output's lock (:class:`OutputLock` of
+    ``lock``, default the only file) is taken, then every existing file is checked
+    (:func:`peghole_mjx.fileio.check_file_replaceable`: the program's, unchanged, of the same
+    parameters unless ``force``), all before the body's work. Each file the body wrote, also
+    when it then failed, gets its record (:func:`peghole_mjx.fileio.write_file_record`).
+    ``has_force``: the command has a ``--force`` (named in the advice)."""
+    if lock is None:
+        if len(files) != 1:
+            raise ValueError("writing_files: name the lock of several files")
+        lock = next(iter(files))
+    real = {}
+    for path in files:
+        fileio.check_no_link_loop(path, what)
+        real[path] = fileio.real_path(path, what) if os.path.islink(path) else Path(path)
+        fileio.check_name_length(real[path], what)
+    fileio.check_no_link_loop(lock, what)
+    above = Path(os.path.abspath(lock)).parent
+    while not above.exists() and above != above.parent:
+        above = above.parent
+    if not above.is_dir():  # the lock's folder cannot be made: say why in the --out's words
+        raise UserInputError(f"{what} {lock}: {above} is an existing file, not a folder")
+    with OutputLock(lock, command, what):
+        before = {}
+        for path, params in files.items():
+            fileio.check_file_replaceable(real[path], params, force, what, has_force)
+            before[path] = _stamp(real[path])
+        try:
+            yield
+        except BaseException:
+            with contextlib.suppress(OSError):  # the first error is the one reported
+                _record(files, real, before, command)
+            raise
+        _record(files, real, before, command)
+
+
+def _record(files: dict, real: dict, before: dict, command: str) -> None:
+    for path, params in files.items():
+        if real[path].is_file() and _stamp(real[path]) != before[path]:
+            fileio.write_file_record(real[path], command, params)
+
+
+def _stamp(path: Path) -> tuple | None:
+    """What tells that a file was (re)written: inode, size, modification time."""
+    try:
+        st = os.stat(path)
+    except OSError:
+        return None
+    return (st.st_ino, st.st_size, st.st_mtime_ns)
+
+
+def command_parameters(args, drop: tuple[str, ...] = ()) -> dict:
+    """A command's parsed arguments as the parameters of what it writes: all but the output
+    itself, ``--force``, the presentation flags and the dispatcher's own entries."""
+    skip = {"out", "force", "json", "func", *drop}
+    return {k: v for k, v in sorted(vars(args).items()) if k not in skip and not callable(v)}

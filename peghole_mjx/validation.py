@@ -250,6 +250,8 @@ RANGES: dict[str, Range] = {
     "max_ch_vertex": Range(4, 1024, integer=True, why_lo="a hull needs at least 4 vertices"),
     "max_convex_hull": Range(-1, 10_000, integer=True),  # -1: no cap; 0 is refused below
     "mcts_iterations": Range(1, 10_000, integer=True),
+    # the seconds task make lets CoACD run on one part (geometry/coacd_budget.py)
+    "coacd_max_s": Range(1.0, 86_400.0, why_hi="a day"),
     # the compliance experiments (experiment compliance | sweep | contact-check): grid values,
     # world counts; the stiffnesses are the iiwa's Cartesian impedance ranges
     "k_rot_Nm_rad": IIWA_K_ROT,

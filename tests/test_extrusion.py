@@ -24,6 +24,7 @@ from peghole_mjx.cli import main  # noqa: E402
 from peghole_mjx.envs import task_make  # noqa: E402
 from peghole_mjx.envs.task_make import ContactRun, make_task  # noqa: E402
 from peghole_mjx.errors import UserInputError  # noqa: E402
+from peghole_mjx.geometry import coacd_budget  # noqa: E402
 from peghole_mjx.geometry import task as tf  # noqa: E402
 from peghole_mjx.geometry.decompose import CoacdParams, load_mesh  # noqa: E402
 from peghole_mjx.geometry.extrusion import (  # noqa: E402
@@ -302,9 +303,9 @@ def test_a_part_that_is_not_an_extrusion_falls_back_to_coacd(tmp_path, monkeypat
     calls = []
     real = task_make.run_coacd
 
-    def counting(mesh, params):
+    def counting(mesh, params, **kw):
         calls.append(params)
-        return real(mesh, params)
+        return real(mesh, params, **kw)
 
     seen = {}
 
@@ -316,7 +317,8 @@ def test_a_part_that_is_not_an_extrusion_falls_back_to_coacd(tmp_path, monkeypat
     monkeypatch.setattr(task_make, "build_task", stub)
     params = CoacdParams(threshold=0.05)
     make_task(pe, ho, tmp_path / "t", params=params)
-    assert calls == [params]  # the hole only, with the given options
+    # the hole only: its coarse estimate (geometry/coacd_budget.py), then the given options
+    assert calls == [coacd_budget.coarse_params(params), params]
     src = seen["source"]
     assert src["pieces"] == "CoACD + exact extrusion" and src["coacd"]["threshold"] == 0.05
     assert src["decomposition"]["peg"]["method"] == "exact extrusion"
@@ -327,7 +329,7 @@ def test_a_part_that_is_not_an_extrusion_falls_back_to_coacd(tmp_path, monkeypat
         make_task(pe, ho, tmp_path / "t", pieces="exact")
     calls.clear()
     make_task(pe, ho, tmp_path / "t", params=params, pieces="coacd")
-    assert len(calls) == 2 and seen["source"]["pieces"] == "CoACD"
+    assert len(calls) == 4 and seen["source"]["pieces"] == "CoACD"  # an estimate each
 
 
 # ------------------------------------------------------------------ bad input, before work

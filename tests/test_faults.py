@@ -607,20 +607,29 @@ def test_evaluate_prints_the_result_before_a_failed_write(
     tmp_path, capsys, fake_evaluate, monkeypatch
 ):
     out = tmp_path / "ev.json"
-    out.write_text("old")
+    assert peghole(["evaluate", "rect", "--json", "--out", out], capsys)[0] == 0
+    old = out.read_text()  # the program's own file (its record beside it): rewritten below
     with monkeypatch.context() as m:
         # the disk fills during the evaluation: the check before it (a real write probe, which
         # a disk already full refuses: test_faults_policies.py) still passed
         m.setattr(fileio, "_probe_write", lambda folder, what: None)
-        full_disk(m)
+        real_fsync = os.fsync
+
+        def enospc_after_the_evaluation(fd):  # the output's lock was taken before, on disk
+            if len(fake_evaluate) > 1:
+                raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC))
+            return real_fsync(fd)
+
+        m.setattr(fileio.os, "fsync", enospc_after_the_evaluation)
         rc, stdout, err = peghole(["evaluate", "rect", "--json", "--out", out], capsys)
     assert rc == 2
     assert_one_line(err, "No space left on device")
     assert strict_json(stdout)["force_reduction_pct"] is None  # printed, valid JSON
-    assert out.read_text() == "old" and sorted(p.name for p in tmp_path.iterdir()) == ["ev.json"]
+    names = sorted(p.name for p in tmp_path.iterdir())
+    assert out.read_text() == old and names == [".ev.json.peghole.json", "ev.json"]
     rc, _, _ = peghole(["evaluate", "rect", "--json", "--out", out], capsys)
     assert rc == 0 and strict_json(out.read_text())["policy"]["mean_time_s"] is None
-    assert len(fake_evaluate) == 2
+    assert len(fake_evaluate) == 3
 
 
 def test_evaluate_several_checkpoints_share_one_baseline_and_policy_only(
@@ -656,7 +665,7 @@ def test_models_build_writes_both_files_or_neither(tmp_path, capsys, monkeypatch
     rc, _, _ = peghole(["models", "build", "--preset", "rect-1", "--out", out], capsys)
     assert rc == 0
     before = snapshot(out)
-    argv = ["models", "build", "--preset", "rect-2", "--out", out]
+    argv = ["models", "build", "--preset", "rect-2", "--out", out, "--force"]
     full_disk(monkeypatch)
     rc, _, err = peghole(argv, capsys)
     assert rc == 2
@@ -664,8 +673,13 @@ def test_models_build_writes_both_files_or_neither(tmp_path, capsys, monkeypatch
     assert snapshot(out) == before  # no scene.xml of rect-2 beside a free_peg.xml of rect-1
     monkeypatch.undo()
 
-    def read_only(*a, **k):
-        raise OSError(errno.EROFS, os.strerror(errno.EROFS), str(a[0]))
+    real_open = open
+
+    def read_only(path, mode="r", *a, **k):
+        """Reads work (the files' ownership records), every write fails."""
+        if any(c in mode for c in "wax+"):
+            raise OSError(errno.EROFS, os.strerror(errno.EROFS), str(path))
+        return real_open(path, mode, *a, **k)
 
     monkeypatch.setattr(fileio, "open", read_only, raising=False)
     rc, _, err = peghole(argv, capsys)

@@ -289,3 +289,174 @@ def test_demo_advises_force_only_where_force_is_accepted(tmp_path, capsys):
     rc, _, err = peghole(["demo", "--out", out, "--profile", "quick"], capsys)
     assert rc == 2
     assert_one_line(err, "an older demo", "pass --force")
+
+
+# ---------------------------------------------------------------- files written one by one
+# (decided 2026-12-05): every writer takes the output's lock and replaces only its own files
+
+
+def _users_file(path: Path, text: str = "precious\n") -> Path:
+    path.parent.mkdir(parents=True, exist_ok=True)
+    path.write_text(text)
+    return path
+
+
+#: command -> (the user's file it would overwrite, relative to tmp_path)
+USERS_FILE_CASES = {
+    "models build": (["models", "build", "--preset", "rect-1", "--out", "{d}/m"], "m/free_peg.xml"),
+    "models check": (
+        ["models", "check", "--preset", "rect-1", "--no-mjx", "--out", "{d}/rows.json", "--force"],
+        "rows.json",
+    ),
+    "models decompose": (
+        ["models", "decompose", "{d}/peg.stl", "{d}/hole.stl", "--out", "{d}/dec"],
+        "dec/report.json",
+    ),
+    "analyze figure": (["analyze", "figure", "2.11", "--out", "{d}/图"], "图/fig_2_11.csv"),
+    "analyze jamming": (
+        ["analyze", "jamming", "--geometry", "rect", "--depth", "20", "--out", "{d}/j", "--force"],
+        "j/jamming.json",
+    ),
+    "evaluate": (["evaluate", "rect", "--episodes", "2", "--out", "{d}/notes.json"], "notes.json"),
+    "compare": (["compare", "{d}/run", "--out", "{d}/c.png"], "c.png"),
+}
+
+
+@pytest.mark.parametrize("case", sorted(USERS_FILE_CASES))
+def test_writers_never_replace_a_file_of_the_users(tmp_path, capsys, case):
+    argv, users = USERS_FILE_CASES[case]
+    _users_file(tmp_path / users)
+    (tmp_path / "run").mkdir()
+    before = hashes(tmp_path)
+    rc, _, err = peghole([a.format(d=tmp_path) for a in argv], capsys)
+    assert rc == 2
+    assert_one_line(err, "peghole_mjx did not write", Path(users).name)
+    assert hashes(tmp_path) == before  # --force does not make a file of the user's ours
+
+
+def test_an_output_file_whose_record_is_damaged_is_not_the_programs(tmp_path, capsys):
+    _users_file(tmp_path / "c.png")
+    _users_file(tmp_path / ".c.png.peghole.json", "[" * 100_000)  # RecursionError if parsed
+    (tmp_path / "run").mkdir()
+    before = hashes(tmp_path)
+    rc, _, err = peghole(["compare", tmp_path / "run", "--out", tmp_path / "c.png"], capsys)
+    assert rc == 2
+    assert_one_line(err, "did not write")
+    assert hashes(tmp_path) == before
+
+
+def test_a_rerun_of_other_parameters_is_refused_unless_force(tmp_path, capsys):
+    jam = ["analyze", "jamming", "--geometry", "rect", "--out", tmp_path / "j"]
+    assert peghole([*jam, "--depth", "20"], capsys)[0] == 0
+    rec = json.loads((tmp_path / "j" / ".jamming.json.peghole.json").read_text())
+    assert rec["sha256"] == fileio.sha256_file(tmp_path / "j" / "jamming.json")
+    assert rec["parameters"]["depth"] == 20
+    before = hashes(tmp_path)
+    rc, _, err = peghole([*jam, "--depth", "25"], capsys)
+    assert rc == 2
+    assert_one_line(err, "other parameters", "differing: depth", "--force")
+    assert hashes(tmp_path) == before
+    assert peghole([*jam, "--depth", "20"], capsys)[0] == 0  # the same parameters: rewritten
+    assert peghole([*jam, "--depth", "25", "--force"], capsys)[0] == 0
+    assert json.loads((tmp_path / "j" / "jamming.json").read_text())["depth_mm"] == 25
+    # a file of ours changed since: no longer provably ours, not even with --force
+    _users_file(tmp_path / "j" / "jamming.json", "{}\n")
+    before = hashes(tmp_path)
+    rc, _, err = peghole([*jam, "--depth", "25", "--force"], capsys)
+    assert rc == 2
+    assert_one_line(err, "changed since it was written")
+    assert hashes(tmp_path) == before
+
+
+def _fake_task_folder(folder: Path, parameters: dict | None) -> None:
+    """A task folder of the program's (its manifest names its files), made with
+    ``parameters`` (None: before they were recorded)."""
+    folder.mkdir()
+    for name in ("task.json", "manifest.json", "scene.xml"):
+        (folder / name).write_text("{}\n")
+    fileio.write_owner_manifest(folder, parameters=parameters)
+
+
+BUILTIN = ["task", "builtin", "cylinder", "--contact-worlds", "1", "--contact-steps", "5"]
+
+
+@pytest.mark.parametrize("slash", ["", "/"])
+def test_a_task_folder_of_other_parameters_is_refused_unless_force(tmp_path, capsys, slash):
+    t = tmp_path / "t"
+    _fake_task_folder(t, {"command": "task builtin", "builtin": "cylinder", "clearance_mm": 0.3})
+    before = hashes(tmp_path)
+    rc, _, err = peghole([*BUILTIN, "--out", f"{t}{slash}"], capsys)
+    assert rc == 2
+    assert_one_line(err, "other parameters", "clearance_mm", "--force")
+    assert hashes(tmp_path) == before
+
+
+def test_a_task_folder_without_recorded_parameters_needs_force(tmp_path, capsys):
+    t = tmp_path / "t"
+    _fake_task_folder(t, None)
+    before = hashes(tmp_path)
+    rc, _, err = peghole([*BUILTIN, "--out", t], capsys)
+    assert rc == 2
+    assert_one_line(err, "not recorded", "--force")
+    assert hashes(tmp_path) == before
+
+
+def test_task_make_checks_its_output_before_any_work(tmp_path, capsys):
+    os.symlink("b", tmp_path / "a")
+    os.symlink("a", tmp_path / "b")
+    os.symlink("nowhere", tmp_path / "dangling")
+    _users_file(tmp_path / "file")
+    cases = {
+        tmp_path / "a" / "t": "symbolic link loop",
+        tmp_path / "dangling": "is a symbolic link",  # replaced whole: it failed after the work
+        tmp_path / ("é" * 122 + "x"): "choose a name of at most 241 bytes",
+        tmp_path / "file": "existing file",
+    }
+    before = hashes(tmp_path)
+    for out, needle in cases.items():
+        rc, _, err = peghole([*BUILTIN, "--out", out], capsys)
+        assert rc == 2, out
+        assert_one_line(err, needle)
+    assert hashes(tmp_path) == before
+
+
+WRITER_LOCKS = {
+    "task builtin": ([*BUILTIN, "--out", "{d}/t"], ".t.lock"),
+    "models build": (["models", "build", "--preset", "rect-1", "--out", "{d}/m"], ".m.lock"),
+    "analyze figure": (["analyze", "figure", "2.11", "--out", "{d}/f"], ".f.lock"),
+    "evaluate": (["evaluate", "rect", "--episodes", "2", "--out", "{d}/e.json"], ".e.json.lock"),
+    "compare": (["compare", "{d}", "--out", "{d}/c.png"], ".c.png.lock"),
+}
+
+
+@pytest.mark.parametrize("case", sorted(WRITER_LOCKS))
+def test_every_writer_refuses_a_second_one_naming_the_holder(tmp_path, capsys, holder, case):
+    argv, lock = WRITER_LOCKS[case]
+    hold_lock(tmp_path / lock, holder, "peghole export")
+    before = hashes(tmp_path)
+    rc, _, err = peghole([a.format(d=tmp_path) for a in argv], capsys)
+    assert rc == 2
+    assert_one_line(err, "being written by another process", f"pid {holder.pid}", "export")
+    assert hashes(tmp_path) == before
+
+
+def test_a_writers_lock_left_by_a_dead_process_is_taken_over(tmp_path, capsys):
+    dead = {"pid": 2**22 + 1, "host": socket.gethostname(), "start": "1", "command": "x"}
+    (tmp_path / ".f.lock").write_text(json.dumps(dead))
+    rc, _, err = peghole(["analyze", "figure", "2.11", "--out", tmp_path / "f"], capsys)
+    assert rc == 0, err
+    assert "stale lock" in err
+    assert not (tmp_path / ".f.lock").exists()
+    assert fileio.file_record(tmp_path / "f" / "fig_2_11.csv") is not None
+
+
+def test_a_recorded_file_counts_as_the_programs_in_a_folder_replaced_whole(tmp_path):
+    folder = tmp_path / "pol"
+    folder.mkdir()
+    (folder / "policy.json").write_text("{}")
+    fileio.write_owner_manifest(folder)
+    (folder / "eval.json").write_text("{}")
+    fileio.write_file_record(folder / "eval.json", "peghole evaluate", {"episodes": 2})
+    assert fileio.foreign_files(folder) == []
+    (folder / "eval.json").write_text('{"edited": 1}')  # changed since: no longer provably ours
+    assert fileio.foreign_files(folder) == [".eval.json.peghole.json", "eval.json"]

@@ -201,7 +201,9 @@ def test_sb3_stack_on_our_adapter_runs_and_reruns_nothing(tmp_path, monkeypatch,
     assert t["updates_per_env_step"] == 1.0
     assert t["config"]["sac"]["gamma"] == reward_discount("RectExtract", over)
     profile = load_train_config("RectExtract", "cpu").env_overrides
-    assert over == {**profile, "engine": "mujoco", "episode_length": 20}
+    # the protocol's reward (outcome) over the profile's default (eq 4.4)
+    expected = {**profile, "engine": "mujoco", "episode_length": 20}
+    assert over == {**expected, "reward_config.kind": "outcome"}
 
     def no_training(*a, **k):
         raise AssertionError("a finished run was trained again")

@@ -17,6 +17,7 @@ from __future__ import annotations
 
 import argparse
 import math
+import os
 import sys
 import tempfile
 import time
@@ -28,7 +29,7 @@ import manifold3d
 import numpy as np
 import trimesh
 
-from peghole_mjx import fileio
+from peghole_mjx import fileio, runtime
 from peghole_mjx import progress as prog
 from peghole_mjx.envs import rollout
 from peghole_mjx.envs.mesh_extract import MeshExtract, default_config
@@ -237,6 +238,11 @@ def main(argv: list[str] | None = None) -> int:
     rows = []
     bar = prog.bar(len(args.parts), "cad gallery", unit="part")
     with tempfile.TemporaryDirectory() as tmp:
+        # as `peghole task make` runs (2026-12-05): the CLI's XLA CPU flag and a compilation
+        # cache, here a new one, so that each part compiles as in a first make
+        # (docs/research/models.md, time of task make)
+        os.environ.setdefault("PEGHOLE_JAX_CACHE", str(Path(tmp) / "jax_cache"))
+        runtime.configure()
         for name in args.parts:
             saved = parts_dir / f"{name}.json"
             if saved.exists():
@@ -253,7 +259,9 @@ def main(argv: list[str] | None = None) -> int:
         **run_provenance(command),
         "config": {
             "parts": {k: {"radial_clearance_mm": PARTS[k][1]} for k in args.parts},
-            "task_make": "defaults (ContactRun: 4 worlds x 200 env steps per policy)",
+            "task_make": "defaults (ContactRun: 4 worlds x 200 env steps per policy, the "
+            "scripted run until every world ended an episode), runtime.configure() as the CLI "
+            "(XLA CPU flag), a new JAX compilation cache",
             "rollout": "MeshExtract, scripted policy, 2 episodes, mujoco engine, seed 0",
             "resumed_parts_from": str(parts_dir),
         },

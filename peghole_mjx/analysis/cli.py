@@ -64,5 +64,11 @@ def add_parser(subparsers) -> None:
     )
     j.add_argument("--wrench", help="F_x,F_z,M in N,N,N mm (e.g. 0.5,2,10)")
     j.add_argument("--out", help="directory for jamming.png and jamming.json")
+    j.add_argument(
+        "--force",
+        action="store_true",
+        help="replace a jamming.png and jamming.json written with other parameters (only the "
+        "program's own: a file it did not write is never replaced)",
+    )
     j.set_defaults(func=command("peghole_mjx.analysis.commands:cmd_jamming"))
     p.set_defaults(func=lambda args: (p.print_help(), 2)[1])

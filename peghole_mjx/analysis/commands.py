@@ -15,6 +15,7 @@ from peghole_mjx import fileio
 from peghole_mjx.analysis import claims, dual, figures, jamming, rect
 from peghole_mjx.errors import UserInputError
 from peghole_mjx.geometry.specs import get_preset
+from peghole_mjx.lock import command_parameters, writing_files
 from peghole_mjx.validation import dumps
 
 #: upper estimates of what ``analyze`` writes, checked against the free disk before the work:
@@ -29,9 +30,13 @@ def cmd_figure(args) -> int:
     fileio.check_out_dir(args.out)
     fileio.check_room(args.out, len(ids) * FIGURE_FAMILY_BYTES + (1 << 20))
     t0 = time.perf_counter()
-    for fid in ids:
-        csv_path, png_path = figures.write_family(fid, args.out)
-        print(f"{fid}: {csv_path} {png_path}")
+    # one writer per folder, only the program's own files replaced (2026-12-05): a family's
+    # files depend on its id alone, so a rerun is always of the same parameters
+    files = {p: {"family": fid} for fid in ids for p in figures.family_paths(fid, args.out)}
+    with writing_files(files, "peghole analyze figure", lock=args.out, has_force=False):
+        for fid in ids:
+            csv_path, png_path = figures.write_family(fid, args.out)
+            print(f"{fid}: {csv_path} {png_path}")
     print(
         f"wrote {len(ids)} famil{'y' if len(ids) == 1 else 'ies'} in "
         f"{time.perf_counter() - t0:.1f} s"
@@ -98,9 +103,18 @@ def cmd_jamming(args) -> int:
             f"depth at which this peg ({2 * r:g} mm wide, clearance {two_c:.3g} mm) can be in "
             "two-point contact: no jamming diagram there"
         )
-    if args.out:
-        fileio.check_out_dir(args.out)
-        fileio.check_room(args.out, JAMMING_BYTES)
+    if not args.out:
+        return _jamming(args, spec, label, plus, r, two_c, mu)
+    fileio.check_out_dir(args.out)
+    fileio.check_room(args.out, JAMMING_BYTES)
+    params = command_parameters(args)
+    files = {Path(args.out) / name: params for name in ("jamming.png", "jamming.json")}
+    # one writer per folder, the program's own files, the same parameters unless --force
+    with writing_files(files, "peghole analyze jamming", args.force, lock=args.out):
+        return _jamming(args, spec, label, plus, r, two_c, mu)
+
+
+def _jamming(args, spec, label: str, plus, r: float, two_c: float, mu: float) -> int:
     d = jamming.diagram(args.depth, r, mu)
     out = {
         "geometry": label,

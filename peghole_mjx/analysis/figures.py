@@ -396,14 +396,19 @@ def _plot(path: Path, fam: Family, panels: list[Panel]) -> None:
     plt.close(fig)
 
 
+def family_paths(fig_id: str, out_dir: str | Path) -> tuple[Path, Path]:
+    """The CSV and PNG :func:`write_family` writes for ``fig_id`` into ``out_dir``."""
+    stem = "fig_" + fig_id.replace(".", "_")
+    return Path(out_dir) / f"{stem}.csv", Path(out_dir) / f"{stem}.png"
+
+
 def write_family(fig_id: str, out_dir: str | Path) -> tuple[Path, Path]:
     """Evaluate one family and write its CSV and PNG into ``out_dir``."""
     fam = FAMILIES[fig_id]
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     panels, rows = fam.build()
-    stem = "fig_" + fig_id.replace(".", "_")
-    csv_path = out / f"{stem}.csv"
+    csv_path, png_path = family_paths(fig_id, out)
     keys: list[str] = []
     for r in rows:
         for k in r:
@@ -414,7 +419,6 @@ def write_family(fig_id: str, out_dir: str | Path) -> tuple[Path, Path]:
         w = csv.DictWriter(fh, fieldnames=keys)
         w.writeheader()
         w.writerows(rows)
-    png_path = out / f"{stem}.png"
     _plot(png_path, fam, panels)
     return csv_path, png_path
 

@@ -304,21 +304,28 @@ class ContactReplay:
 #: twice (2026-12-04; docs/guide/own_parts.md, time of the contact count)
 _BATCHED: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
 
+# The contact count's ``reset_start`` is compiled for one world and called per world (decided
+# 2026-12-05, docs/research/models.md): on the 2-core CPU, for issue 54's triangular
+# task, ``jax.jit(jax.vmap(env.reset_start))`` over 4 worlds took 8.5 s to trace, 44 s to
+# compile and 7.5 s per call; ``jax.jit(env.reset_start)`` 22 s to trace and compile and
+# 2 ms per world; the same draws, the joint angles within float32 rounding (4e-7 rad).
+
 
 def batched_reset_step(env: PegHoleEnv) -> tuple[Callable, Callable]:
     """The batched reset and ``jax.jit(jax.vmap(env.step))``, made once per env (so compiled
     once per batch shape, whatever the policy). On an engine with host callbacks (``mujoco``)
-    the reset is two graphs, as the rollouts' (``rollout._batch_reset``): ``reset_start``,
-    pure JAX and most of the compile, kept by the persistent compilation cache across
-    processes, then the small ``reset_finish``; the same start states as one graph."""
+    the reset is two graphs: ``reset_start``, pure JAX and most of the compile, kept by the
+    persistent compilation cache across processes, compiled for one world and called world by
+    world (the note above), then the small batched ``reset_finish``."""
     fns = _BATCHED.get(env)
     if fns is None:
         if env.engine.host_callbacks:
-            start = jax.jit(jax.vmap(env.reset_start))
+            start = jax.jit(env.reset_start)
             finish = jax.jit(jax.vmap(env.reset_finish))
 
             def reset(rngs: jax.Array) -> Any:
-                return finish(start(rngs))
+                starts = [start(k) for k in rngs]
+                return finish(jax.tree.map(lambda *xs: jnp.stack(xs), *starts))
 
         else:
             reset = jax.jit(functools.partial(batch_reset, env))
@@ -332,25 +339,36 @@ def max_active_contacts(
     worlds: int = 4,
     env_steps: int = 200,
     seed: int = 0,
+    replays: bool = False,
 ) -> dict[str, int]:
     """The most active contacts (distance <= 0) in any world after any physics step, ``worlds``
     worlds of ``env`` (on its ``mujoco`` engine) run for ``env_steps`` env steps with
     ``act(obs, rng) -> action``; a finished world restarts from its start state. Counted by
     :class:`ContactReplay`. Returns the maximum, the episodes that ended and the env steps
-    run."""
+    run.
+
+    ``replays``: ``act`` ignores its observation and its key (the scripted policy), so a
+    restarted world replays its first episode exactly (the whole state, its key included, is
+    put back): the run ends once every world has ended an episode, as the rest would count
+    the same contacts again (decided 2026-12-05, docs/research/models.md)."""
     reset, step = batched_reset_step(env)
     act_v = jax.jit(jax.vmap(act))
     state = start = reset(jax.random.split(jax.random.PRNGKey(seed), worlds))
     key = jax.random.PRNGKey(seed + 1)
-    most, episodes = 0, 0
+    most, episodes, ran = 0, 0, 0
+    ended = np.zeros(worlds, bool)
     with ContactReplay(env) as replay:
         for _ in range(env_steps):
             key, sub = jax.random.split(key)
             prev = state
             state = step(prev, act_v(prev.obs, jax.random.split(sub, worlds)))
+            ran += 1
             most = max(most, replay.max_active(prev, state))
             done = np.asarray(state.done) > 0
             if done.any():
                 episodes += int(done.sum())
+                ended |= done
+                if replays and ended.all():
+                    break
                 state = restart_done(state, start)
-    return {"max_active": most, "episodes_ended": episodes, "env_steps": env_steps}
+    return {"max_active": most, "episodes_ended": episodes, "env_steps": ran}

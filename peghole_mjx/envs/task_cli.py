@@ -54,6 +54,12 @@ def _common(q: argparse.ArgumentParser) -> None:
         help="env steps of each of those rollouts (scripted and random policy)",
     )
     q.add_argument("--json", action="store_true", help="print task.json")
+    q.add_argument(
+        "--force",
+        action="store_true",
+        help="replace a task folder made with other parameters (only the program's own "
+        "files: a folder holding others is refused)",
+    )
 
 
 def add_parser(sub: argparse._SubParsersAction) -> None:
@@ -77,10 +83,18 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     m.add_argument(
         "--pieces",
         default="auto",
-        choices=["auto", "exact", "coacd"],
+        choices=["auto", "exact", "revolve", "coacd"],
         help="auto (default): the exact convex pieces of a part that is an extrusion along +z "
-        "(every face horizontal or vertical), CoACD for any other part; exact: refuse a part "
-        "that is not an extrusion; coacd: CoACD for both",
+        "(every face horizontal or vertical), N-gons for a pair revolved about +z, CoACD for "
+        "any other part; exact: refuse a part that is not an extrusion; revolve: refuse a pair "
+        "that is not revolved; coacd: CoACD for both",
+    )
+    m.add_argument(
+        "--coacd-max-s",
+        type=arg("coacd_max_s"),
+        default=600.0,
+        help="seconds CoACD may run on one part (default 600): its time and pieces are "
+        "estimated by a coarse run first and a part over this or --max-hulls is refused",
     )
     add_coacd_arguments(
         m,

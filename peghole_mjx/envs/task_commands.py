@@ -59,6 +59,7 @@ def _shared(args: argparse.Namespace, caps: TaskCaps, run: ContactRun) -> dict:
         "caps": caps,
         "contacts": run,
         "progress": not args.json,
+        "force": args.force,
     }
 
 
@@ -72,6 +73,7 @@ def cmd_make(args: argparse.Namespace) -> int:
         units=args.units,
         params=params,
         pieces=args.pieces,
+        coacd_max_s=args.coacd_max_s,
         **_shared(args, caps, run),
     )
     return _report(doc, args, args.out)

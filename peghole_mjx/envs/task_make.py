@@ -8,13 +8,18 @@ NAME`` (the built-in parts of :mod:`peghole_mjx.geometry.shapes`, exact pieces) 
 pipeline, :func:`build_task`:
 
 1. the output folder checked (a new folder, or a task folder to replace that holds only the
-   program's files: :func:`peghole_mjx.fileio.check_replaceable`) before any work;
+   program's files: :func:`peghole_mjx.fileio.check_replaceable`, made with the same
+   parameters unless ``force``: :func:`peghole_mjx.fileio.check_same_parameters`; no link
+   loop, a name that fits with the temporary names beside it) and its lock taken
+   (:class:`peghole_mjx.lock.OutputLock`: one writer per task folder) before any work;
 2. the meshes checked as a peg in its hole (:func:`~peghole_mjx.geometry.decompose.
    check_assembly`: sizes, two parts, the peg inside the hole, no overlap, no undercut along
    +z; :func:`~peghole_mjx.geometry.task_check.check_blind_hole`: a bottom under the peg)
    and their radial clearance measured;
-3. the convex pieces (exact for an extrusion or a built-in, else CoACD's) checked against
-   the caps (pieces per part, vertices per piece, contact pairs);
+3. the convex pieces (exact for an extrusion or a built-in, else CoACD's, whose pieces and
+   time are estimated first and refused up front past the caps:
+   :mod:`peghole_mjx.geometry.coacd_budget`) checked against the caps (pieces per part,
+   vertices per piece, contact pairs);
 4. the frames, start pose, clearance, extraction sweep, drop test and hull intrusion
    (:func:`~peghole_mjx.geometry.task_check.place_and_check`);
 5. the folder written to a temporary sibling, the MeshExtract env built from it on the
@@ -45,6 +50,7 @@ from peghole_mjx.envs.config import sim_options
 from peghole_mjx.envs.contacts import max_active_contacts
 from peghole_mjx.envs.mesh_extract import MeshExtract, default_config
 from peghole_mjx.errors import UserInputError
+from peghole_mjx.geometry import coacd_budget
 from peghole_mjx.geometry import task as tf
 from peghole_mjx.geometry.decompose import (
     CoacdParams,
@@ -58,6 +64,7 @@ from peghole_mjx.geometry.mjcf import build_scene
 from peghole_mjx.geometry.revolve import revolved_pair
 from peghole_mjx.geometry.shapes import builtin_parts
 from peghole_mjx.geometry.task_check import TaskGeometry, check_blind_hole, place_and_check
+from peghole_mjx.lock import OutputLock
 from peghole_mjx.provenance import provenance
 from peghole_mjx.validation import check, dumps
 
@@ -108,10 +115,20 @@ def _ancestor(path: Path) -> Path:
 TASK_FOLDER_FILES = (*tf.FILES, tf.MANIFEST)
 
 
-def check_out_task_dir(out: str | Path, extra_bytes: int = 0) -> Path:
+def check_out_task_dir(
+    out: str | Path, extra_bytes: int = 0, parameters: dict | None = None, force: bool = False
+) -> Path:
     """``out`` may receive a task folder: a new folder, an empty one or a task folder (which
-    is replaced whole); its nearest existing folder writable with room. Nothing is created."""
+    is replaced whole; with ``parameters``, only one made with the same unless ``force``);
+    its nearest existing folder writable with room. Nothing is created."""
     out = Path(out)
+    fileio.check_no_link_loop(out, "--out")
+    fileio.check_name_length(out, "--out")
+    if out.is_symlink():  # replaced whole at the end: refused before the work (2026-12-05)
+        raise UserInputError(
+            f"--out {out} is a symbolic link (to {os.readlink(out)}): a task folder is "
+            "written whole and never replaces a link; give the folder's own path"
+        )
     if out.exists():
         if not out.is_dir():
             raise UserInputError(f"--out {out} is an existing file, not a folder")
@@ -121,6 +138,8 @@ def check_out_task_dir(out: str | Path, extra_bytes: int = 0) -> Path:
             )
         # a task folder is replaced only when every file in it is the program's (2026-12-04)
         fileio.check_replaceable(out, TASK_FOLDER_FILES)
+        if parameters is not None:  # a rerun of other parameters (2026-12-05)
+            fileio.check_same_parameters(out, parameters, force)
     base = _ancestor(out.parent)
     if not base.is_dir() or not os.access(base, os.W_OK | os.X_OK):
         raise UserInputError(f"--out {out}: {base} is not a writable folder")
@@ -273,10 +292,14 @@ def build_task(
     contacts: ContactRun = ContactRun(),
     progress: bool = False,
     t0: float | None = None,
+    parameters: dict | None = None,
+    force: bool = False,
 ) -> dict[str, Any]:
     """Steps 2-6 of the module docstring for meshes and pieces in metres (assembled pose),
     the meshes already checked as a peg in its hole (``check_assembly``); returns
-    ``task.json``'s content."""
+    ``task.json``'s content. ``parameters``: what the task is made of and with, recorded in
+    the folder's ownership manifest (a rerun of others is refused unless ``force``); the
+    caller holds the output's lock."""
     t0 = time.perf_counter() if t0 is None else t0
     out = Path(out)
     friction = check("friction", friction)
@@ -322,7 +345,7 @@ def build_task(
         tf.PEG_HULLS: tf.hulls_json(g.peg_hulls, "peg").encode(),
         tf.HOLE_HULLS: tf.hulls_json(g.hole_hulls, "hole").encode(),
     }
-    check_out_task_dir(out, sum(len(v) for v in meshes.values()))
+    check_out_task_dir(out, sum(len(v) for v in meshes.values()), parameters, force)
 
     def files(measured: int, cap: int, counts: dict, timing: dict) -> dict[str, bytes]:
         spec = _spec(g, name, friction, radial, face_vertices, measured, cap)
@@ -353,8 +376,9 @@ def build_task(
         ):
             with prog.phase(f"counting contacts, {policy_name} policy", enabled=progress):
                 runs[policy_name] = max_active_contacts(
-                    env, policy, contacts.worlds, contacts.env_steps, contacts.seed
-                )
+                    env, policy, contacts.worlds, contacts.env_steps, contacts.seed,
+                    replays=policy_name == "scripted",  # a constant action (2026-12-05)
+                )  # fmt: skip
         measured = max(r["max_active"] for r in runs.values())
         if measured > caps.max_contacts:
             raise UserInputError(
@@ -367,7 +391,8 @@ def build_task(
             "measured_max": measured,
             "cap": cap,
             "how": "most active contacts (distance <= 0) after any physics step, MuJoCo C, "
-            "the scripted and a random policy, finished worlds restarted; cap = max + "
+            "the scripted and a random policy, finished worlds restarted (the scripted run "
+            "ends once every world has ended an episode: a restart replays it); cap = max + "
             f"max(4, {CAP_MARGIN:g} max)",
             "worlds": contacts.worlds,
             "env_steps_per_policy": contacts.env_steps,
@@ -383,12 +408,15 @@ def build_task(
         for stale in (tf.SCENE, tf.TASK_FILE, tf.MANIFEST):
             (tmp / stale).unlink()
         write(tmp, final)
-        fileio.replace_dir(tmp, out, known=TASK_FOLDER_FILES)
+        fileio.replace_dir(tmp, out, known=TASK_FOLDER_FILES, parameters=parameters)
     return tf.read_task_json(out)
 
 
-#: ``--pieces`` of ``task make``: exact pieces where a part is an extrusion, else CoACD's
-PIECES = ("auto", "exact", "coacd")
+#: ``--pieces`` of ``task make``: exact pieces where a part is an extrusion (or both parts are
+#: revolved), else CoACD's; ``revolve``: the revolution N-gons or a refusal (2026-12-05)
+PIECES = ("auto", "exact", "revolve", "coacd")
+#: the ``--pieces`` that try a part's exact extrusion pieces
+EXACT_TRIED = ("auto", "exact")
 EXACT = "exact extrusion"
 COACD = "CoACD"
 
@@ -401,9 +429,15 @@ def _part_pieces(
     progress: bool,
     max_hulls: int,
     exact=None,
-) -> tuple[list, dict[str, Any]]:
+    coacd_max_s: float = coacd_budget.COACD_MAX_S,
+    clearance: float | None = None,
+    estimate_s: float = coacd_budget.ESTIMATE_S,
+) -> tuple[list | None, dict[str, Any]]:
     """One part's convex pieces and the record of how they were made (``task.json``'s
-    ``source.decomposition``); ``exact``: :func:`exact_pieces` of ``mesh`` if already made."""
+    ``source.decomposition``); ``exact``: :func:`exact_pieces` of ``mesh`` if already made.
+    A part for CoACD is estimated in at most ``estimate_s`` and refused when it exceeds
+    ``max_hulls`` or ``coacd_max_s`` (:mod:`peghole_mjx.geometry.coacd_budget`); its hulls
+    are None then, made by :func:`_run_coacd` once every part passed."""
     if pieces != "coacd":
         exact = exact_pieces(mesh) if exact is None else exact
         if not isinstance(exact, str):
@@ -423,9 +457,25 @@ def _part_pieces(
         why = f"not an extrusion along +z: {exact}"
     else:
         why = "--pieces coacd"
-    with prog.phase(f"decomposing the {label} part (CoACD)", enabled=progress):
-        hulls = run_coacd(mesh, params)
-    return hulls, {"method": COACD, "why": why, "pieces": len(hulls)}
+    # bounded (2026-12-05, geometry/coacd_budget.py): estimated in seconds, refused up front;
+    # the run itself is the caller's, once every part's estimate passed (_run_coacd)
+    with prog.phase(f"estimating CoACD on the {label} part (a coarse run)", enabled=progress):
+        est = coacd_budget.estimate(mesh, params, estimate_s, run_coacd)
+    refused = coacd_budget.refusal(label, est, params, mesh, max_hulls, coacd_max_s, clearance)
+    if refused:
+        raise UserInputError(refused)
+    estimate = {"pieces": est.pieces, "seconds": round(est.seconds, 1), "complete": est.complete}
+    return None, {"method": COACD, "why": why, "estimate": estimate, "_est": est}
+
+
+def _run_coacd(label, mesh, params, record, max_hulls, coacd_max_s, progress) -> list:
+    """The CoACD run of a part whose estimate (``record["_est"]``) passed."""
+    est = record.pop("_est")
+    hulls = coacd_budget.run_bounded(
+        mesh, params, est, label, coacd_max_s, progress, run_coacd, max_hulls
+    )
+    record["pieces"] = len(hulls)
+    return hulls
 
 
 def make_task(
@@ -441,6 +491,8 @@ def make_task(
     contacts: ContactRun = ContactRun(),
     progress: bool = False,
     pieces: str = "auto",
+    force: bool = False,
+    coacd_max_s: float = coacd_budget.COACD_MAX_S,
 ) -> dict[str, Any]:
     """``peghole task make``: a user's peg and hole meshes (assembled pose, +z extraction)
     decomposed, then :func:`build_task`. ``pieces`` (:data:`PIECES`): ``auto`` takes the
@@ -448,66 +500,114 @@ def make_task(
     (:mod:`peghole_mjx.geometry.extrusion`); when those do not fit the cap (or a part is no
     extrusion) and both parts are revolved about +z, their N-gon pieces
     (:func:`~peghole_mjx.geometry.revolve.revolved_pair`); CoACD's for any other part;
-    ``exact`` refuses a part that is not an extrusion; ``coacd`` runs CoACD on both."""
+    ``exact`` refuses a part that is not an extrusion; ``revolve`` takes the N-gon pieces of
+    a pair revolved about +z and refuses any other; ``coacd`` runs CoACD on both. CoACD is
+    estimated first and refused up front past the piece cap or ``coacd_max_s`` seconds a part.
+    ``force``: replace a task folder made with other parameters."""
     t0 = time.perf_counter()
     params = params or CoacdParams()
     if pieces not in PIECES:
         raise UserInputError(f"unknown --pieces {pieces!r}; choose one of {list(PIECES)}")
+    coacd_max_s = check("coacd_max_s", coacd_max_s, "--coacd-max-s")
     check_out_task_dir(out)
     peg = load_mesh(peg_path, units)
     hole = load_mesh(hole_path, units)
-    check_assembly(peg, hole, units)  # before the decomposition
-    check_blind_hole(peg, hole)
-    hulls, records = {}, {}
-    meshes = {"peg": peg, "hole": hole}
-    exact_made = {k: exact_pieces(m) for k, m in meshes.items()} if pieces != "coacd" else {}
-    revolved = None
-    fits = all(
-        not isinstance(e, str) and len(e.hulls) <= caps.max_hulls for e in exact_made.values()
-    )
-    if pieces == "auto" and not fits:
-        # round parts (a fine M-gon export, a cone): N-gons sized by the clearance (2026-12-04)
-        revolved = revolved_pair(peg, hole, estimate_radial_clearance_mm(peg, hole), caps.max_hulls)
-    if revolved is not None and not isinstance(revolved, str):
-        hulls = {"peg": revolved.peg_hulls, "hole": revolved.hole_hulls}
-        records = revolved.records
-    else:
-        for label, mesh in meshes.items():
-            hulls[label], records[label] = _part_pieces(
-                label, mesh, params, pieces, progress, caps.max_hulls, exact_made.get(label)
-            )
-            if revolved is not None:
-                records[label]["not_revolved"] = revolved
-    methods = {r["method"] for r in records.values()}
-    source = {
-        "kind": "meshes",
-        "peg_mesh": str(Path(peg_path).name),
-        "hole_mesh": str(Path(hole_path).name),
+    parameters = {
+        "command": "task make",
         "peg_mesh_sha256": fileio.sha256_file(peg_path),
         "hole_mesh_sha256": fileio.sha256_file(hole_path),
         "units": units,
-        "pieces": " + ".join(sorted(methods)) if len(methods) > 1 else methods.pop(),
-        "decomposition": records,
+        "pieces": pieces,
+        "coacd": asdict(params),
+        **_shared_parameters(friction, peg_mass_kg, caps, contacts),
     }
-    if any(r["method"] == COACD for r in records.values()):
-        source["coacd"] = asdict(params)
-    exact = all(r["method"] == EXACT for r in records.values())
-    return build_task(
-        peg,
-        hole,
-        hulls["peg"],
-        hulls["hole"],
-        out,
-        name=Path(peg_path).stem,
-        source=source,
-        exact=exact,
-        friction=friction,
-        peg_mass_kg=peg_mass_kg,
-        caps=caps,
-        contacts=contacts,
-        progress=progress,
-        t0=t0,
-    )
+    # one writer per task folder (2026-12-05), taken before the decomposition
+    with OutputLock(out, "peghole task make"):
+        check_out_task_dir(out, 0, parameters, force)
+        check_assembly(peg, hole, units)  # before the decomposition
+        check_blind_hole(peg, hole)
+        hulls, records = {}, {}
+        meshes = {"peg": peg, "hole": hole}
+        exact_made = (
+            {k: exact_pieces(m) for k, m in meshes.items()} if pieces in EXACT_TRIED else {}
+        )
+        revolved = None
+        fits = all(
+            not isinstance(e, str) and len(e.hulls) <= caps.max_hulls for e in exact_made.values()
+        )
+        # the clearance sizes the N-gons and words a CoACD refusal: measured when needed
+        radial = None if fits and exact_made else estimate_radial_clearance_mm(peg, hole)
+        if pieces == "revolve" or (pieces == "auto" and not fits):
+            # round parts (a fine M-gon export, a cone): N-gons sized by the clearance (2026-12-04)
+            revolved = revolved_pair(peg, hole, radial, caps.max_hulls)
+            if pieces == "revolve" and isinstance(revolved, str):
+                raise UserInputError(
+                    f"--pieces revolve: the pair is not revolved about +z ({revolved}); use "
+                    "--pieces auto"
+                )
+        if revolved is not None and not isinstance(revolved, str):
+            hulls = {"peg": revolved.peg_hulls, "hole": revolved.hole_hulls}
+            records = revolved.records
+        else:
+            # the parts' CoACD estimates all come first: a verdict within 30 s (issue 54)
+            coacd_parts = sum(
+                pieces == "coacd" or isinstance(exact_made.get(k), str) for k in meshes
+            )
+            estimate_s = coacd_budget.ESTIMATE_S / max(coacd_parts, 1)
+            for label, mesh in meshes.items():
+                hulls[label], records[label] = _part_pieces(
+                    label, mesh, params, pieces, progress, caps.max_hulls, exact_made.get(label),
+                    coacd_max_s, radial, estimate_s,
+                )  # fmt: skip
+                if revolved is not None:
+                    records[label]["not_revolved"] = revolved
+            for label, mesh in meshes.items():
+                if hulls[label] is None:
+                    hulls[label] = _run_coacd(
+                        label, mesh, params, records[label], caps.max_hulls, coacd_max_s,
+                        progress,
+                    )  # fmt: skip
+        methods = {r["method"] for r in records.values()}
+        source = {
+            "kind": "meshes",
+            "peg_mesh": str(Path(peg_path).name),
+            "hole_mesh": str(Path(hole_path).name),
+            "peg_mesh_sha256": parameters["peg_mesh_sha256"],
+            "hole_mesh_sha256": parameters["hole_mesh_sha256"],
+            "units": units,
+            "pieces": " + ".join(sorted(methods)) if len(methods) > 1 else methods.pop(),
+            "decomposition": records,
+        }
+        if any(r["method"] == COACD for r in records.values()):
+            source["coacd"] = asdict(params)
+        exact = all(r["method"] == EXACT for r in records.values())
+        return build_task(
+            peg,
+            hole,
+            hulls["peg"],
+            hulls["hole"],
+            out,
+            name=Path(peg_path).stem,
+            source=source,
+            exact=exact,
+            friction=friction,
+            peg_mass_kg=peg_mass_kg,
+            caps=caps,
+            contacts=contacts,
+            progress=progress,
+            t0=t0,
+            parameters=parameters,
+            force=force,
+        )
+
+
+def _shared_parameters(friction, peg_mass_kg, caps: TaskCaps, contacts: ContactRun) -> dict:
+    return {
+        "friction": friction,
+        "peg_mass_kg": peg_mass_kg,
+        "caps": asdict(caps),
+        "contacts": asdict(contacts),
+    }
 
 
 def make_builtin(
@@ -520,37 +620,49 @@ def make_builtin(
     caps: TaskCaps = TaskCaps(),
     contacts: ContactRun = ContactRun(),
     progress: bool = False,
+    force: bool = False,
 ) -> dict[str, Any]:
     """``peghole task builtin``: a built-in part (:mod:`peghole_mjx.geometry.shapes`), its
-    exact pieces, then :func:`build_task`."""
+    exact pieces, then :func:`build_task`. ``force``: replace a task folder made with other
+    parameters."""
     t0 = time.perf_counter()
     check_out_task_dir(out)
-    parts = builtin_parts(name, clearance_mm)
-    check_assembly(parts.peg_mesh, parts.hole_mesh)
-    check_blind_hole(parts.peg_mesh, parts.hole_mesh)
-    source = {
-        "kind": "builtin",
+    parameters = {
+        "command": "task builtin",
         "builtin": name,
-        "clearance_mm": parts.clearance_mm,
-        "description": parts.description,
-        "pieces": "exact",
+        "clearance_mm": clearance_mm,
+        **_shared_parameters(friction, peg_mass_kg, caps, contacts),
     }
-    return build_task(
-        parts.peg_mesh,
-        parts.hole_mesh,
-        parts.peg_hulls,
-        parts.hole_hulls,
-        out,
-        name=name,
-        source=source,
-        exact=True,
-        friction=friction,
-        peg_mass_kg=peg_mass_kg,
-        caps=caps,
-        contacts=contacts,
-        progress=progress,
-        t0=t0,
-    )
+    with OutputLock(out, "peghole task builtin"):  # one writer per task folder (2026-12-05)
+        check_out_task_dir(out, 0, parameters, force)
+        parts = builtin_parts(name, clearance_mm)
+        check_assembly(parts.peg_mesh, parts.hole_mesh)
+        check_blind_hole(parts.peg_mesh, parts.hole_mesh)
+        source = {
+            "kind": "builtin",
+            "builtin": name,
+            "clearance_mm": parts.clearance_mm,
+            "description": parts.description,
+            "pieces": "exact",
+        }
+        return build_task(
+            parts.peg_mesh,
+            parts.hole_mesh,
+            parts.peg_hulls,
+            parts.hole_hulls,
+            out,
+            name=name,
+            source=source,
+            exact=True,
+            friction=friction,
+            peg_mass_kg=peg_mass_kg,
+            caps=caps,
+            contacts=contacts,
+            progress=progress,
+            t0=t0,
+            parameters=parameters,
+            force=force,
+        )
 
 
 __all__ = ["ContactRun", "TaskCaps", "build_task", "make_builtin", "make_task"]

@@ -21,6 +21,7 @@ from peghole_mjx.geometry.parts import (
     resolve_representation,
 )
 from peghole_mjx.geometry.specs import PRESETS, dual_spec, get_preset, rect_spec, validate
+from peghole_mjx.lock import command_parameters, writing_files
 from peghole_mjx.provenance import provenance
 from peghole_mjx.validation import arg, dumps
 
@@ -102,6 +103,12 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
         type=Path,
         help="also write the rows with device, versions and date to this JSON file",
     )
+    c.add_argument(
+        "--force",
+        action="store_true",
+        help="replace an --out file written with other parameters (only the program's own: a file "
+        "it did not write is never replaced)",
+    )
     c.set_defaults(func=cmd_check)
 
     b = msub.add_parser(
@@ -132,6 +139,12 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
         help="MJX max_contact_points (default: the measured cap of the scene; 0: none)",
     )
     b.add_argument("--out", required=True, type=Path, help="output directory")
+    b.add_argument(
+        "--force",
+        action="store_true",
+        help="replace scenes written with other parameters (only the program's own: a file "
+        "it did not write is never replaced)",
+    )
     b.set_defaults(func=cmd_build)
 
     d = msub.add_parser(
@@ -161,13 +174,26 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
         help="also drop the free peg into the decomposed hole (MuJoCo C)",
     )
     d.add_argument("--json", action="store_true", help="print the report as JSON")
+    d.add_argument(
+        "--force",
+        action="store_true",
+        help="replace a user_peghole.xml and report.json written with other parameters (only "
+        "the program's own: a file it did not write is never replaced)",
+    )
     d.set_defaults(func=cmd_decompose)
 
 
 def cmd_check(args: argparse.Namespace) -> int:
+    if not args.out:
+        return _check(args)
+    fileio.check_out_file(args.out)
+    # one writer, the program's own file, of the same parameters unless --force (2026-12-05)
+    with writing_files({args.out: command_parameters(args)}, "peghole models check", args.force):
+        return _check(args)
+
+
+def _check(args: argparse.Namespace) -> int:
     names = args.preset or list(PRESETS)
-    if args.out:
-        fileio.check_out_file(args.out)
     jobs = []
     for name in names:
         spec = PRESETS[name]
@@ -270,7 +296,11 @@ def spec_from_args(args: argparse.Namespace):
 def cmd_build(args: argparse.Namespace) -> int:
     """Both scenes are written together (both files or neither): ``mjcf.write_scenes``."""
     spec = spec_from_args(args)
-    scene, free, rep = mjcf.write_scenes(spec, args.out, args.representation, args.contact_cap)
+    params = command_parameters(args)
+    files = {Path(args.out) / name: params for name in ("scene.xml", "free_peg.xml")}
+    # one writer per folder, the program's own files, the same parameters unless --force
+    with writing_files(files, "peghole models build", args.force, lock=args.out):
+        scene, free, rep = mjcf.write_scenes(spec, args.out, args.representation, args.contact_cap)
     print(f"wrote {scene} and {free} (collision representation: {rep})")
     print(
         f"  nominal diametral clearance {spec.clearance_mm:.3f} mm; view with: "
@@ -282,6 +312,18 @@ def cmd_build(args: argparse.Namespace) -> int:
 def cmd_decompose(args: argparse.Namespace) -> int:
     fileio.check_out_dir(args.out)
     params = decompose.CoacdParams.from_args(args)
+    run = command_parameters(args)
+    for key in ("peg_mesh", "hole_mesh"):  # the meshes' bytes, not only their names
+        if Path(getattr(args, key)).is_file():
+            run[f"{key}_sha256"] = fileio.sha256_file(getattr(args, key))
+    files = {Path(args.out) / name: run for name in ("user_peghole.xml", "report.json")}
+    # one writer per folder, the program's own files, the same parameters unless --force;
+    # checked before CoACD (2026-12-05)
+    with writing_files(files, "peghole models decompose", args.force, lock=args.out):
+        return _decompose(args, params)
+
+
+def _decompose(args: argparse.Namespace, params) -> int:
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", decompose.DecompositionWarning)  # reported below instead
         report = decompose.decompose_parts(

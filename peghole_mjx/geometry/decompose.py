@@ -15,7 +15,9 @@ from __future__ import annotations
 
 import math
 import multiprocessing
+import os
 import signal
+import tempfile
 import warnings
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
@@ -129,15 +131,21 @@ COACD_MAX_FACES = 200_000
 
 #: seconds the CoACD child is given to end after SIGTERM before it is killed
 COACD_KILL_AFTER_S = 2.0
+#: seconds between two looks of the parent at a CoACD child's log
+WATCH_S = 0.25
 
 
-def _coacd_child(conn, vertices, faces, kwargs) -> None:
+def _coacd_child(conn, vertices, faces, kwargs, log_path=None) -> None:
     """CoACD in the child process: sends ``("ok", [(verts, faces), ...])`` or ``("error",
-    text)``. Ctrl-C is the parent's to handle (it ends this process)."""
+    text)``. Ctrl-C is the parent's to handle (it ends this process). ``log_path``: CoACD's
+    ``info`` log (its standard output) written there, for the parent to follow."""
     signal.signal(signal.SIGINT, signal.SIG_IGN)
     try:
         coacd = _cad("coacd")
-        coacd.set_log_level("error")
+        if log_path is not None:
+            with open(log_path, "wb", buffering=0) as f:
+                os.dup2(f.fileno(), 1)
+        coacd.set_log_level("error" if log_path is None else "info")
         parts = coacd.run_coacd(coacd.Mesh(vertices, faces), **kwargs)
         conn.send(("ok", [(np.asarray(v), np.asarray(f)) for v, f in parts]))
     except BaseException as exc:  # everything is reported to the parent, in one line
@@ -146,10 +154,11 @@ def _coacd_child(conn, vertices, faces, kwargs) -> None:
         conn.close()
 
 
-def _in_child(target, *args):
+def _in_child(target, *args, watch=None):
     """``target(conn, *args)`` in a child process (``spawn``: a fresh interpreter, no JAX
     threads forked); its answer. CoACD is native code that holds the GIL and ignores
-    SIGINT/SIGTERM for its whole run: here the parent waits, and on Ctrl-C or SIGTERM (the
+    SIGINT/SIGTERM for its whole run: here the parent waits, calling ``watch()`` every
+    :data:`WATCH_S` seconds (which may raise to stop the child), and on Ctrl-C or SIGTERM (the
     CLI's ``Terminated``) or any error it terminates the child (SIGKILL after
     :data:`COACD_KILL_AFTER_S`) before re-raising."""
     ctx = multiprocessing.get_context("spawn")
@@ -159,6 +168,9 @@ def _in_child(target, *args):
     child.close()
     try:
         try:
+            while not parent.poll(WATCH_S):
+                if watch is not None:
+                    watch()
             answer = parent.recv()
         except EOFError:
             proc.join()
@@ -178,11 +190,14 @@ def _in_child(target, *args):
     return answer
 
 
-def run_coacd(mesh, params: CoacdParams = CoacdParams()) -> list[np.ndarray]:
+def run_coacd(mesh, params: CoacdParams = CoacdParams(), watch=None, log=None) -> list[np.ndarray]:
     """Convex hulls (list of vertex arrays, metres) of ``mesh`` by CoACD.
 
     A mesh of more than :data:`COACD_MAX_FACES` faces is refused in one line. CoACD runs in a
-    child process (:func:`_in_child`) that Ctrl-C and SIGTERM end."""
+    child process (:func:`_in_child`) that Ctrl-C and SIGTERM end. With ``log`` (an object
+    with ``feed(text)``, :class:`peghole_mjx.geometry.coacd_budget.CoacdLog`), CoACD's log is
+    fed to it as it is written and ``watch(log)`` called after each look (it may raise to stop
+    the run)."""
     trimesh = _cad("trimesh")
     _cad("coacd")  # a missing extra is named here, not in the child
 
@@ -209,7 +224,21 @@ def run_coacd(mesh, params: CoacdParams = CoacdParams()) -> list[np.ndarray]:
         seed=params.seed,
     )
     verts, faces = np.asarray(mesh.vertices), np.asarray(mesh.faces)
-    status, parts = _in_child(_coacd_child, verts, faces, kwargs)
+    if log is None:
+        status, parts = _in_child(_coacd_child, verts, faces, kwargs)
+    else:
+        with tempfile.TemporaryDirectory(prefix="peghole-coacd-") as tmp:
+            path = Path(tmp) / "coacd.log"
+            path.touch()
+            with open(path, "rb") as f:
+
+                def look() -> None:
+                    log.feed(f.read().decode(errors="replace"))
+                    if watch is not None:
+                        watch(log)
+
+                status, parts = _in_child(_coacd_child, verts, faces, kwargs, str(path), watch=look)
+                log.feed(f.read().decode(errors="replace"))
     if status != "ok":
         raise UserInputError(f"CoACD failed: {parts}")
     hulls = []
@@ -217,6 +246,50 @@ def run_coacd(mesh, params: CoacdParams = CoacdParams()) -> list[np.ndarray]:
         hull = trimesh.Trimesh(verts, faces).convex_hull
         hulls.append(np.asarray(hull.vertices))
     return hulls
+
+
+#: the most point x triangle pairs :func:`contains` sums winding numbers over (else trimesh's
+#: ray test); and per chunk of points (memory: about 200 bytes a pair)
+WINDING_MAX_PAIRS = 200_000_000
+WINDING_CHUNK_PAIRS = 250_000
+
+
+def contains(mesh, pts: np.ndarray) -> np.ndarray:
+    """Which of ``pts`` lie inside the closed, outward-oriented ``mesh``: its generalised
+    winding number at each point (the solid angles of its triangles summed, Van Oosterom and
+    Strackee) above one half, in NumPy; trimesh's ray test (``mesh.contains``) past
+    :data:`WINDING_MAX_PAIRS`. Decided 2026-12-05 (docs/research/models.md, time of task
+    make): trimesh's ray test without embree took 20 s of the stepped pin's 22 s of checks
+    (40 000 points, its 64-facet bore), the winding numbers give the same verdicts. A point
+    whose winding number is not near a whole number (on the surface, or in the plane of a
+    face beside it, where the solid angles' signed zeros decide) takes the ray test."""
+    pts = np.asarray(pts, float)
+    tri = np.asarray(mesh.triangles, float)
+    if len(pts) * len(tri) > WINDING_MAX_PAIRS or not len(pts):
+        return np.asarray(mesh.contains(pts), bool)
+    step = max(1, WINDING_CHUNK_PAIRS // len(tri))
+    w = np.empty(len(pts))
+    for i in range(0, len(pts), step):
+        p = pts[i : i + step, None, :]
+        a, b, c = tri[None, :, 0] - p, tri[None, :, 1] - p, tri[None, :, 2] - p
+        la, lb, lc = (np.linalg.norm(v, axis=-1) for v in (a, b, c))
+        det = np.einsum("pfi,pfi->pf", a, np.cross(b, c))
+        ab = np.einsum("pfi,pfi->pf", a, b)
+        bc = np.einsum("pfi,pfi->pf", b, c)
+        ca = np.einsum("pfi,pfi->pf", c, a)
+        prod = la * lb * lc
+        half = np.arctan2(det, prod + ab * lc + bc * la + ca * lb)
+        # a point in a triangle's plane sees no solid angle of it (the atan2 of a signed zero
+        # would give +-pi)
+        w[i : i + step] = np.where(np.abs(det) <= 1e-12 * prod, 0.0, half).sum(1)
+    w /= 2 * np.pi
+    inside = w > 0.5
+    # a point on the surface (or in the plane of a face it touches) has no whole winding
+    # number: those few go to the ray test, as before
+    edge = np.abs(w - np.round(w)) > 0.25
+    if edge.any():
+        inside[edge] = np.asarray(mesh.contains(pts[edge]), bool)
+    return inside
 
 
 @dataclass(frozen=True)
@@ -246,8 +319,10 @@ def measure_deviation(
             for h, c in zip(hull_meshes, counts, strict=True)
         ]
     )
-    outside = ~mesh.contains(pts)  # hull surface where the part has no material
-    _, excess, _ = trimesh.proximity.closest_point(mesh, pts[outside])
+    outside = ~contains(mesh, pts)  # hull surface where the part has no material
+    excess = np.zeros(0)  # every point inside (or on) the part: no excess
+    if outside.any():
+        _, excess, _ = trimesh.proximity.closest_point(mesh, pts[outside])
     return Deviation(
         excess_mm=float(excess.max() / MM) if len(excess) else 0.0,
         excess_p95_mm=float(np.percentile(excess, 95) / MM) if len(excess) else 0.0,
@@ -298,7 +373,7 @@ def _surface_points(mesh, n: int, seed: int) -> np.ndarray:
 def _deepest_inside(solid, pts: np.ndarray) -> tuple[float, np.ndarray | None]:
     """Largest depth (m) of ``pts`` inside ``solid`` and where (None if none is inside)."""
     trimesh = _cad("trimesh")
-    inside = pts[solid.contains(pts)]
+    inside = pts[contains(solid, pts)]
     if not len(inside):
         return 0.0, None
     _, dist, _ = trimesh.proximity.closest_point(solid, inside)

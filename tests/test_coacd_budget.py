@@ -1,0 +1,149 @@
+"""CoACD bounded (geometry/coacd_budget.py): its log read into parts searched and pieces, the
+estimate of a coarse run, the one-line refusal with the options that would fit, the bar of a
+fraction, and ``task make`` refusing a part over the cap within 30 s. ``--pieces revolve``
+refuses a pair that is not revolved. Small meshes only. Skipped without the ``cad`` extra."""
+
+import argparse
+import re
+import time
+
+import numpy as np
+import pytest
+
+trimesh = pytest.importorskip("trimesh")
+manifold3d = pytest.importorskip("manifold3d")
+pytest.importorskip("coacd")
+
+from peghole_mjx.cli import main  # noqa: E402
+from peghole_mjx.envs import task_cli  # noqa: E402
+from peghole_mjx.geometry import coacd_budget as cb  # noqa: E402
+from peghole_mjx.geometry.decompose import CoacdParams  # noqa: E402
+
+#: CoACD 1.0.14's info log of a cube less an octagonal bore (threshold 0.05): rounds of 1, 2,
+#: 4 and 8 parts, then the merge to 8 pieces (trimmed to the lines the reader uses)
+LOG = """\
+[CoACD] [info]  - Decomposition (MCTS)
+[CoACD] [info] iter 0 ---- waiting pool: 1
+[CoACD] [info] Processing [0.0%]
+[CoACD] [info] Processing [100.0%]
+[CoACD] [info] iter 1 ---- waiting pool: 2
+[CoACD] [info] Processing [0.0%]
+[CoACD] [info] Processing [50.0%]
+[CoACD] [info] Processing [100.0%]
+[CoACD] [info] iter 2 ---- waiting pool: 4
+[CoACD] [info] Processing [50.0%]
+"""
+LOG_END = """\
+[CoACD] [info] Processing [100.0%]
+[CoACD] [info] iter 3 ---- waiting pool: 8
+[CoACD] [info] Processing [100.0%]
+[CoACD] [info]  - Merge Convex Hulls
+[CoACD] [info] Compute Time: 13.88s
+[CoACD] [info] # Convex Hulls: 8
+"""
+
+
+def _tm(m):
+    mesh = m.to_mesh()
+    return trimesh.Trimesh(np.asarray(mesh.vert_properties)[:, :3], np.asarray(mesh.tri_verts))
+
+
+def chamfered_pair(c: float = 0.25, chamfer: float = 2.0):
+    """A 10 x 10 x 25 mm square peg, 15 mm deep in a blind square hole ``c`` larger all round
+    whose mouth is chamfered ``chamfer`` mm (not an extrusion, not a revolution: CoACD), in a
+    30 x 30 x 20 mm block; mm."""
+    sq = manifold3d.CrossSection.square
+    peg = manifold3d.Manifold.extrude(sq((10.0, 10.0), center=True), 25.0).translate((0, 0, -15))
+    block = manifold3d.Manifold.cube((30, 30, 20), center=True).translate((0, 0, -10))
+    w = 10 + 2 * c
+    cavity = manifold3d.Manifold.extrude(sq((w, w), center=True), 16.0).translate((0, 0, -15))
+    k = (w + 2 * chamfer) / w
+    mouth = manifold3d.Manifold.extrude(
+        sq((w, w), center=True), chamfer + 1e-3, scale_top=(k, k)
+    ).translate((0, 0, -chamfer))
+    return _tm(peg), _tm(block - cavity - mouth)
+
+
+def bored_cube():
+    """A 1 m cube less an octagonal bore (48 faces): CoACD cuts it in a few seconds."""
+    bore = trimesh.creation.cylinder(radius=0.3, height=2, sections=8)
+    return trimesh.creation.box([1, 1, 1]).difference(bore)
+
+
+def test_the_log_gives_parts_searched_and_a_lower_bound_on_the_pieces():
+    log = cb.CoacdLog()
+    log.feed(LOG)
+    # rounds of 1 and 2 parts searched, half of the round of 4: 1 + 2 + 2
+    assert log.searched == pytest.approx(5.0)
+    # no part finished yet (each was cut in two), 4 waiting: at least 4 pieces
+    assert log.finished == 0 and log.pieces_at_least == 4 and not log.merging
+    log.feed(LOG_END)
+    assert log.merging and log.hulls == 8
+    assert log.searched == 15 and log.tree_parts == 15  # 2 x 8 pieces - 1
+    assert log.finished == 8 and log.pieces_at_least == 8
+
+
+def test_a_refusal_is_one_line_naming_the_estimate_and_options_that_fit():
+    mesh = trimesh.creation.box([0.05, 0.05, 0.03])
+    params = CoacdParams()
+    est = cb.CoacdEstimate(pieces=300, seconds=900.0, tree_parts=599, coarse_s=12.0, complete=False)
+    text = cb.refusal("hole", est, params, mesh, max_hulls=64, max_s=600.0, clearance_mm=0.25)
+    assert "\n" not in text
+    assert "at least 300 convex pieces and at least 15 min" in text
+    assert "more than 1.25 x the cap of 64 pieces (--max-hulls" in text
+    assert "longer than 10 min (--coacd-max-s)" in text
+    assert "--max-convex-hull 64" in text and "--coacd-max-s 1380" in text
+    t = float(re.search(r"--threshold ([\d.]+)", text).group(1))
+    assert t == pytest.approx(0.01 * 300 / 64 * 1.5, rel=0.01)
+    assert "against a 0.25 mm radial clearance" in text
+    ok = cb.CoacdEstimate(pieces=20, seconds=100.0, tree_parts=39, coarse_s=3.0, complete=True)
+    assert cb.refusal("hole", ok, params, mesh, 64, 600.0) is None
+
+
+def test_the_estimate_and_the_bounded_run_show_a_fraction(capsys):
+    mesh = bored_cube()
+    cheap = CoacdParams(threshold=0.05, mcts_iterations=20, mcts_nodes=10, resolution=500)
+    est = cb.estimate(mesh, cheap, budget_s=60.0)
+    assert est.complete and est.pieces >= 2 and est.tree_parts >= 2 * est.pieces - 1
+    assert 0 < est.seconds < 60.0
+    hulls = cb.run_bounded(mesh, cheap, est, "test", max_s=120.0, progress=True)
+    assert len(hulls) >= 2
+    err = capsys.readouterr().err
+    # a bar of parts searched out of a total, ending full
+    done = re.findall(r"(\d+)/(\d+)", err)
+    assert done and done[-1][0] == done[-1][1]
+
+
+def test_a_coarse_run_past_its_budget_gives_lower_bounds():
+    mesh = bored_cube()
+    t = time.perf_counter()
+    est = cb.estimate(mesh, CoacdParams(threshold=0.01), budget_s=0.5)
+    assert time.perf_counter() - t < 10.0  # the child was stopped
+    assert not est.complete and "at least" in est.text()
+
+
+def test_task_make_refuses_a_coacd_part_over_the_cap_within_30_s(tmp_path, capsys):
+    peg, hole = chamfered_pair()
+    peg.export(tmp_path / "peg.stl")
+    hole.export(tmp_path / "hole.stl")
+    out = tmp_path / "task"
+    argv = ["task", "make", str(tmp_path / "peg.stl"), str(tmp_path / "hole.stl")]
+    t = time.perf_counter()
+    rc = main([*argv, "--out", str(out), "--max-hulls", "4"])
+    took = time.perf_counter() - t
+    err = capsys.readouterr().err.strip().splitlines()[-1]
+    assert rc != 0 and took < 30.0, (rc, took)
+    assert "the hole part needs CoACD: an estimated" in err
+    assert "x the cap of 4 pieces" in err and "--max-convex-hull 4" in err
+    assert not out.exists()
+    # --pieces revolve: a square pair is not revolved, refused in one line before any work
+    rc = main([*argv, "--out", str(out), "--pieces", "revolve"])
+    err = capsys.readouterr().err.strip().splitlines()[-1]
+    assert rc != 0 and "--pieces revolve: the pair is not revolved about +z" in err
+
+
+def test_the_cli_default_is_the_modules_time_cap():
+    p = argparse.ArgumentParser()
+    task_cli.add_parser(p.add_subparsers())
+    args = p.parse_args(["task", "make", "a.stl", "b.stl", "--out", "x"])
+    assert args.coacd_max_s == cb.COACD_MAX_S
