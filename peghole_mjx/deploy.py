@@ -148,6 +148,21 @@ def _vector(value: Any, size: int, name: str) -> np.ndarray:
     return x
 
 
+def _rotation(value: Any, name: str) -> np.ndarray:
+    """``value`` as a finite float64 (3, 3) rotation matrix, else :class:`SensorError`."""
+    try:
+        R = np.asarray(value, np.float64)
+    except (TypeError, ValueError):
+        raise SensorError(f"{name} must be a 3 x 3 rotation matrix, got {value!r}") from None
+    if R.shape != (3, 3):
+        raise SensorError(f"{name} must be a 3 x 3 rotation matrix, got shape {R.shape}")
+    if not np.all(np.isfinite(R)):
+        raise SensorError(
+            f"{name} holds NaN or infinity: refused, the robot keeps its last command"
+        )
+    return R
+
+
 def _not_finite(path: Path, constant: str):
     raise CorruptFileError(f"{path} holds {constant}: every number of an export is finite")
 
@@ -408,16 +423,16 @@ class DeployedPolicy:
         """``(flange_pos_m, flange_tilt_rad)`` in the hole frame from poses in any common frame
         (e.g. the robot base): positions (3,) m, rotations (3, 3). The tilt is the rotation
         vector of the flange orientation relative to straight down (``tool_down_rotation``)."""
-        H = np.asarray(hole_rot, np.float64)
+        H = _rotation(hole_rot, "hole_rot")
         pos = H.T @ (_vector(flange_pos, 3, "flange_pos") - _vector(hole_pos, 3, "hole_pos"))
-        R = H.T @ np.asarray(flange_rot, np.float64) @ self._tool_down.T
+        R = H.T @ _rotation(flange_rot, "flange_rot") @ self._tool_down.T
         return pos, rotvec_from_mat(R)
 
     def wrench_from_sensor(self, force_N, torque_Nm, sensor_rot_in_hole) -> np.ndarray:
         """The wrench input of :meth:`act` from an F/T sensor reading: the force the flange
         side exerts on the peg (sensor frame), rotated into the hole frame with the peg's
         weight removed (``tool.peg_mass_kg``), and the torque rotated (as the env does)."""
-        R = np.asarray(sensor_rot_in_hole, np.float64)
+        R = _rotation(sensor_rot_in_hole, "sensor_rot_in_hole")
         f = R @ _vector(force_N, 3, "force_N") + self._peg_mass * self._gravity
         t = R @ _vector(torque_Nm, 3, "torque_Nm")
         return np.concatenate([f, t])

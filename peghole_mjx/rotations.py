@@ -11,12 +11,16 @@ from __future__ import annotations
 
 import numpy as np
 
+from peghole_mjx.errors import UserInputError
+
 
 def rotvec_from_mat(R: np.ndarray) -> np.ndarray:
     """Rotation vector (axis * angle, rad) of a rotation matrix; smooth at zero angle.
 
     ``R`` (..., 3, 3): any leading batch dimensions (one vector per matrix); float64 out."""
     R = np.asarray(R, np.float64)
+    if R.shape[-2:] != (3, 3):
+        raise UserInputError(f"rotvec_from_mat takes (..., 3, 3) matrices, got shape {R.shape}")
     s = 0.5 * np.stack(
         [R[..., 2, 1] - R[..., 1, 2], R[..., 0, 2] - R[..., 2, 0], R[..., 1, 0] - R[..., 0, 1]],
         axis=-1,
@@ -31,6 +35,8 @@ def rotvec_from_mat(R: np.ndarray) -> np.ndarray:
 def rot_from_rotvec(v: np.ndarray) -> np.ndarray:
     """Rotation matrix of a rotation vector (rad), Rodrigues' formula."""
     v = np.asarray(v, np.float64)
+    if v.shape != (3,):
+        raise UserInputError(f"rot_from_rotvec takes one rotation vector (3,), got shape {v.shape}")
     th = float(np.linalg.norm(v))
     if th < 1e-12:
         return np.eye(3)

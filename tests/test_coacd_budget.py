@@ -1,7 +1,8 @@
 """CoACD bounded (geometry/coacd_budget.py): its log read into parts searched and pieces, the
 estimate of a coarse run, the one-line refusal with the options that would fit, the bar of a
-fraction, and ``task make`` refusing a part over the cap within 30 s. ``--pieces revolve``
-refuses a pair that is not revolved. Small meshes only. Skipped without the ``cad`` extra."""
+fraction, and ``task make`` refusing a part over the piece or the time cap, or accepting one
+under them, within 30 s. ``--pieces revolve`` refuses a pair that is not revolved. Small meshes
+only. Skipped without the ``cad`` extra."""
 
 import argparse
 import re
@@ -140,6 +141,65 @@ def test_task_make_refuses_a_coacd_part_over_the_cap_within_30_s(tmp_path, capsy
     rc = main([*argv, "--out", str(out), "--pieces", "revolve"])
     err = capsys.readouterr().err.strip().splitlines()[-1]
     assert rc != 0 and "--pieces revolve: the pair is not revolved about +z" in err
+
+
+def test_task_make_refuses_a_coacd_part_over_its_time_cap_within_30_s(tmp_path, capsys):
+    """The other cap: an estimated time past --coacd-max-s is refused up front in one line
+    naming the estimate and the --coacd-max-s that would fit, before the full run."""
+    peg, hole = chamfered_pair()
+    peg.export(tmp_path / "peg.stl")
+    hole.export(tmp_path / "hole.stl")
+    out = tmp_path / "task"
+    argv = ["task", "make", str(tmp_path / "peg.stl"), str(tmp_path / "hole.stl")]
+    t = time.perf_counter()
+    rc = main([*argv, "--out", str(out), "--coacd-max-s", "1"])
+    took = time.perf_counter() - t
+    err = capsys.readouterr().err.strip().splitlines()
+    assert rc == 2 and took < 30.0, (rc, took)
+    assert [line for line in err if "error:" in line] == [err[-1]]
+    assert "the hole part needs CoACD: an estimated" in err[-1]
+    assert "longer than 1 s (--coacd-max-s)" in err[-1]
+    fit = int(re.search(r"--coacd-max-s (\d+)", err[-1].split("options")[1]).group(1))
+    assert fit > 1 and not out.exists()
+
+
+def test_task_make_accepts_a_coacd_part_within_30_s_with_a_bar_of_a_fraction(
+    tmp_path, capsys, monkeypatch
+):
+    """A part under the caps: the verdict (the full run's start) within 30 s of the command's
+    start, then the full run's bar counts parts searched out of the estimated total and ends
+    full. The pipeline after the pieces is stubbed (it ends the command in one line)."""
+    from peghole_mjx.envs import task_make
+    from peghole_mjx.errors import UserInputError
+
+    peg, hole = chamfered_pair()
+    peg.export(tmp_path / "peg.stl")
+    hole.export(tmp_path / "hole.stl")
+    starts = []
+    real = task_make.run_coacd
+
+    def timed(mesh, params, **kw):
+        starts.append((time.perf_counter(), params.mcts_iterations))
+        return real(mesh, params, **kw)
+
+    def stub(peg_mesh, hole_mesh, peg_hulls, hole_hulls, out, **kw):
+        raise UserInputError(f"stub: {len(hole_hulls)} hole pieces")
+
+    monkeypatch.setattr(task_make, "run_coacd", timed)
+    monkeypatch.setattr(task_make, "build_task", stub)
+    argv = ["task", "make", str(tmp_path / "peg.stl"), str(tmp_path / "hole.stl")]
+    argv += ["--out", str(tmp_path / "task"), "--threshold", "0.05", "--mcts-iterations", "40"]
+    t = time.perf_counter()
+    assert main([*argv, "--resolution", "1000"]) == 2
+    err = capsys.readouterr().err
+    # the hole only: the coarse estimate (30 iterations), then the full run (40)
+    assert [it for _, it in starts] == [cb.COARSE["mcts_iterations"], 40]
+    assert starts[1][0] - t < 30.0, starts[1][0] - t
+    assert err.strip().splitlines()[-1].startswith("peghole: error: stub: ")
+    bar = [line for line in re.split(r"[\r\n]", err) if "parts searched / estimated" in line]
+    fractions = [tuple(map(int, m)) for line in bar for m in re.findall(r"(\d+)/(\d+)", line)]
+    assert fractions and all(0 <= n <= total for n, total in fractions)
+    assert fractions[-1][0] == fractions[-1][1] > 1  # ends full
 
 
 def test_the_cli_default_is_the_modules_time_cap():

@@ -3,8 +3,10 @@
 The parts are real meshes generated in code (trimesh and manifold3d): a triangular peg in a
 50 x 50 x 30 mm block (issue 54's case), a keyed D-shaft, a 6-tooth spline and a T-slot, each
 an extrusion along +z in a blind hole; a chamfered hole (not an extrusion) falls back to
-CoACD. Two of the built-in shapes (geometry/shapes.py) exported to STL and read back through
-the exact path must give their code-made pieces' volume and clearance. No CoACD runs for an
+CoACD. The six built-in shapes (geometry/shapes.py) exported to STL and read back (three
+through the exact path, the other three through ``task make``) must give their code-made
+pieces' volume and clearance. Bad pairs (an undercut in a non-extruded hole, a peg longer than
+the block, units off by 1000) are refused in one line before any piece. No CoACD runs for an
 extrusion: ``run_coacd`` is replaced by a function that fails. Skipped without the ``cad``
 extra.
 """
@@ -34,7 +36,7 @@ from peghole_mjx.geometry.extrusion import (  # noqa: E402
     mesh_free_travel_mm,
     pieces_volume,
 )
-from peghole_mjx.geometry.shapes import builtin_parts, offset_convex  # noqa: E402
+from peghole_mjx.geometry.shapes import BUILTINS, builtin_parts, offset_convex  # noqa: E402
 from peghole_mjx.validation import loads  # noqa: E402
 
 #: the contact count of these tests: 2 worlds, 40 env steps per policy
@@ -242,6 +244,61 @@ def test_builtin_meshes_through_the_exact_path_match_their_code_made_pieces(name
     assert b.rest_depth_mm == pytest.approx(a.rest_depth_mm, abs=1e-6)
 
 
+#: the built-ins the test above leaves out (it covers hex, keyed and l_section)
+OTHER_BUILTINS = sorted(set(BUILTINS) - {"hex", "keyed", "l_section"})
+
+
+@pytest.mark.parametrize("name", OTHER_BUILTINS)
+def test_the_other_builtins_through_task_make_from_stl_get_their_code_made_pieces(
+    name, tmp_path, monkeypatch, no_coacd
+):
+    """Issue 54, reuse, for the other three built-ins (cylinder, three_pin, tapered): their
+    meshes written to STL (mm) and given to ``task make`` as a user's pair (the pipeline
+    after the pieces stubbed) get pieces without CoACD (exact extrusion; the chamfered
+    ``tapered`` hole: revolution N-gons, the mesh's own 16-gon) whose peg is the code-made
+    peg's solid and whose checks (clearance, start depth) are the code-made pieces' within
+    1 % of the clearance."""
+    from peghole_mjx.envs.config import sim_options
+    from peghole_mjx.envs.mesh_extract import default_config
+    from peghole_mjx.geometry.decompose import estimate_radial_clearance_mm
+    from peghole_mjx.geometry.task_check import place_and_check
+
+    parts = builtin_parts(name, 0.2)
+    for label, mesh in (("peg", parts.peg_mesh), ("hole", parts.hole_mesh)):
+        m = mesh.copy()
+        m.apply_scale(1.0 / MM)
+        m.export(tmp_path / f"{label}.stl")
+    seen = {}
+
+    def stub(peg_mesh, hole_mesh, peg_hulls, hole_hulls, out, **kw):
+        seen.update(kw, peg=peg_mesh, hole=hole_mesh, peg_hulls=peg_hulls, hole_hulls=hole_hulls)
+        return {}
+
+    monkeypatch.setattr(task_make, "build_task", stub)
+    make_task(tmp_path / "peg.stl", tmp_path / "hole.stl", tmp_path / "task")
+    method = "revolution N-gons" if name == "tapered" else "exact extrusion"
+    assert seen["source"]["pieces"] == method and "coacd" not in seen["source"]
+    peg_hulls, hole_hulls = seen["peg_hulls"], seen["hole_hulls"]
+    assert len(peg_hulls) == len(parts.peg_hulls)
+    assert pieces_volume(peg_hulls) == pytest.approx(pieces_volume(parts.peg_hulls), rel=1e-6)
+    if name == "tapered":  # the same wedges as the code's (16-gon, to the block's circle)
+        assert len(hole_hulls) == len(parts.hole_hulls)
+        assert pieces_volume(hole_hulls) == pytest.approx(pieces_volume(parts.hole_hulls), rel=1e-6)
+    else:  # the exact pieces are the hole part itself (the code's wedges leave out corners)
+        assert pieces_volume(hole_hulls) == pytest.approx(seen["hole"].volume, rel=1e-9)
+    kw = {
+        "friction": 0.266,
+        "peg_mass_kg": task_make.PEG_DENSITY_KG_M3 * float(seen["peg"].volume),
+        "radial_clearance_mm": estimate_radial_clearance_mm(seen["peg"], seen["hole"]),
+        "sim": sim_options(default_config()),
+    }
+    code = place_and_check(seen["peg"], seen["hole"], parts.peg_hulls, parts.hole_hulls, **kw)
+    stl = place_and_check(seen["peg"], seen["hole"], peg_hulls, hole_hulls, **kw)
+    assert stl.effective_min_mm == pytest.approx(code.effective_min_mm, abs=0.002)  # 1 % of 0.2
+    assert stl.effective_max_mm == pytest.approx(code.effective_max_mm, abs=0.002)
+    assert stl.rest_depth_mm == pytest.approx(code.rest_depth_mm, abs=1e-4)  # STL: float32
+
+
 # ------------------------------------------------------------------ task make
 
 
@@ -358,4 +415,74 @@ def test_bad_pairs_are_refused_in_one_line_before_any_decomposition(tmp_path, ca
     for i, (args, match) in enumerate(cases):
         out = tmp_path / f"out{i}"
         _refused(["task", "make", *args, "--out", str(out)], capsys, match)
+        assert not out.exists()
+
+
+def _tm(m):
+    mesh = m.to_mesh()
+    return trimesh.Trimesh(np.asarray(mesh.vert_properties)[:, :3], np.asarray(mesh.tri_verts))
+
+
+def undercut_pair():
+    """A dovetail: a square peg whose foot (11 x 11 mm) narrows to 8 x 8 mm at the mouth of a
+    square blind hole that narrows the same way (12 x 12 -> 8.5 x 8.5 mm, 20 mm deep) in a 30 x
+    30 x 25 mm block. Sloped faces (no extrusion), square (no revolution): only CoACD could cut
+    it, and the foot cannot come out along +z."""
+    sq = manifold3d.CrossSection.square
+    peg = manifold3d.Manifold.extrude(sq((11.0, 11.0), center=True), 20.0, scale_top=(8 / 11,) * 2)
+    peg = peg.translate((0, 0, -20)) + manifold3d.Manifold.extrude(
+        sq((8.0, 8.0), center=True), 11.0
+    ).translate((0, 0, -1))
+    cavity = manifold3d.Manifold.extrude(
+        sq((12.0, 12.0), center=True), 20.0, scale_top=(8.5 / 12,) * 2
+    ).translate((0, 0, -20))
+    mouth = manifold3d.Manifold.extrude(sq((8.5, 8.5), center=True), 2.0).translate((0, 0, -1))
+    block = manifold3d.Manifold.cube((30, 30, 25), center=True).translate((0, 0, -12.5))
+    return (_tm(m) for m in (peg, block - cavity - mouth))
+
+
+def test_an_undercut_a_long_peg_or_units_off_by_1000_are_one_line_before_any_pieces(
+    tmp_path, capsys, monkeypatch
+):
+    """Issue 54's bad inputs to ``task make``: a non-extruded hole with an undercut, a peg
+    longer than the block (through a through hole), mm files read as metres and metre files
+    read as mm. Each is one line (exit 2), the whole of stderr, before any piece is made:
+    every step from the exact pieces on (extrusion, revolution, the clearance that sizes
+    them, CoACD's estimate and run) fails the test, and no folder is written."""
+
+    def forbidden(*a, **k):
+        raise AssertionError("work started before the refusal")
+
+    for name in ("exact_pieces", "revolved_pair", "estimate_radial_clearance_mm", "run_coacd"):
+        monkeypatch.setattr(task_make, name, forbidden)
+    monkeypatch.setattr(coacd_budget, "estimate", forbidden)
+    peg, hole = undercut_pair()
+    scaled = [m.copy() for m in (peg, hole)]
+    assert isinstance(exact_pieces(scaled[1]), str)  # the hole is no extrusion
+    pu, hu = _write(tmp_path / "undercut", peg, hole)
+    for m in scaled:
+        m.apply_scale(MM)  # the same parts in metres
+    pm, hm = _write(tmp_path / "metres", *scaled)
+    r = 16.0 / math.sqrt(3)
+    tri = np.array(
+        [[r * math.cos(a), r * math.sin(a)] for a in np.pi / 2 + 2 * np.pi * np.arange(3) / 3]
+    )
+    outer = manifold3d.CrossSection.square((50.0, 50.0), center=True)
+    through = _solid(outer - manifold3d.CrossSection([offset_convex(tri, 0.25)]), -30.0, 0.0)
+    long_peg = _solid(manifold3d.CrossSection([tri]), -33.0, 12.0)  # 45 mm through a 30 mm block
+    pl, hl = _write(tmp_path / "long", long_peg, through)
+    pe, ho = _write(tmp_path / "ok", *triangle_pair()[:2])
+    cases = (
+        ([pu, hu], "extractable along +z", "undercut"),
+        ([pl, hl], "below the hole part's lowest point"),
+        ([pe, ho, "--units", "m"], "are the units right?"),  # 50 m: mm files read as metres
+        ([pm, hm, "--units", "mm"], "are the units right?"),  # 0.03 mm: metre files read as mm
+    )
+    for i, (args, *needles) in enumerate(cases):
+        out = tmp_path / f"out{i}"
+        rc = main(["task", "make", *args, "--out", str(out)])
+        err = capsys.readouterr().err.strip().splitlines()
+        assert rc == 2 and len(err) == 1, err
+        assert err[0].startswith("peghole: error: "), err
+        assert all(n in err[0] for n in needles), err[0]
         assert not out.exists()

@@ -175,6 +175,20 @@ def test_cad_peg_with_an_undercut_is_refused(tmp_path, capsys, monkeypatch):
     assert written == []
 
 
+@pytest.mark.parametrize("copy", [False, True], ids=["same_file", "two_copies"])
+def test_identical_peg_and_hole_are_two_parts_not_an_undercut(tmp_path, capsys, monkeypatch, copy):
+    """The same solid given as peg and hole (one file twice, or two copies): refused as one
+    solid given twice, not reported as an "undercut"."""
+    no_work(monkeypatch)
+    _, hole = rect_parts()
+    peg_file, hole_file = export(tmp_path, hole, hole)
+    rc, err, written = decompose(tmp_path, capsys, hole_file, hole_file if not copy else peg_file)
+    assert rc == 2
+    assert_one_line(err, "not a peg-hole (two parts)", "the same solid")
+    assert "undercut" not in err
+    assert written == []
+
+
 @pytest.mark.parametrize("preset", ["rect-1", "dual-2"])
 def test_a_real_peg_hole_passes_the_cad_checks(preset):
     """The checks do not refuse the thesis's parts (true round, tip on the hole bottom)."""

@@ -11,6 +11,7 @@ from __future__ import annotations
 import errno
 import hashlib
 import os
+import re
 import signal
 import subprocess
 import sys
@@ -190,10 +191,21 @@ if __name__ == "__main__":
     except cli.Terminated:
         print("terminated", flush=True)
         sys.exit(cli.EXIT_TERMINATED)
+    except KeyboardInterrupt:
+        print("interrupted", flush=True)
+        sys.exit(cli.EXIT_INTERRUPTED)
 """
 
 
-def test_a_deaf_coacd_child_ends_with_its_parent_on_sigterm(tmp_path):
+@pytest.mark.parametrize(
+    "sig, status, said",
+    [
+        (signal.SIGTERM, cli.EXIT_TERMINATED, "terminated"),
+        (signal.SIGINT, cli.EXIT_INTERRUPTED, "interrupted"),
+    ],
+    ids=["SIGTERM", "SIGINT"],
+)
+def test_a_deaf_coacd_child_ends_with_its_parent_on_a_signal(tmp_path, sig, status, said):
     script, pidfile = tmp_path / "hang.py", tmp_path / "child.pid"
     script.write_text(textwrap.dedent(HANG))
     proc = subprocess.Popen(
@@ -209,12 +221,12 @@ def test_a_deaf_coacd_child_ends_with_its_parent_on_sigterm(tmp_path):
             assert proc.poll() is None and time.time() < deadline, proc.communicate()
             time.sleep(0.2)
         child = int(pidfile.read_text())
-        proc.send_signal(signal.SIGTERM)
+        proc.send_signal(sig)
         out, err = proc.communicate(timeout=30)
     finally:
         if proc.poll() is None:
             proc.kill()
-    assert proc.returncode == cli.EXIT_TERMINATED and "terminated" in out, err
+    assert proc.returncode == status and said in out, err
     time.sleep(0.5)
     with pytest.raises(ProcessLookupError):  # the child was killed and reaped
         os.kill(child, 0)
@@ -272,13 +284,14 @@ def test_a_run_refused_for_memory_leaves_no_empty_out(tmp_path, capsys):
     assert not out.exists()  # check_out_dir made it to probe it; the refusal removed it
 
 
-@pytest.mark.parametrize("n", [4, 9])
-def test_the_raw_env_refuses_actions_of_the_wrong_length_when_traced(n):
-    """``env.step`` with 4 or 9 actions for a 6-action task: one line at trace time (shapes
-    only, nothing compiled or run)."""
+@pytest.mark.parametrize("shape", [(4,), (9,), (1,), (6, 1), (1, 6)])
+def test_the_raw_env_refuses_actions_of_the_wrong_length_when_traced(shape):
+    """``env.step`` with 4 or 9 actions for a 6-action task, or an action of shape (1,),
+    (A, 1) or (1, A): one line at trace time (shapes only, nothing compiled or run)."""
     import jax
 
     env = envs.load("RectExtract", config_overrides=MUJOCO)
     state = jax.eval_shape(env.reset, jax.random.PRNGKey(0))
-    with pytest.raises(UserInputError, match=f"action of shape \\({n},\\): RectExtract takes 6"):
-        jax.eval_shape(env.step, state, jax.ShapeDtypeStruct((n,), "float32"))
+    needle = re.escape(f"action of shape {shape}: RectExtract takes 6")
+    with pytest.raises(UserInputError, match=needle):
+        jax.eval_shape(env.step, state, jax.ShapeDtypeStruct(shape, "float32"))

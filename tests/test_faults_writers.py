@@ -125,15 +125,28 @@ def test_a_sweep_started_while_another_of_other_parameters_runs_is_refused(
     assert not (out / "compliance_sweep_rect.json").exists()
 
 
-def test_sweep_cli_refuses_other_parameters_in_one_line(tmp_path, capsys, fake_sweep):  # noqa: F811
+@pytest.mark.parametrize(
+    "other, differing",
+    [(["--grid", "tiny", "--seed", "3"], "seed"), (["--grid", "cpu"], "grid.")],
+    ids=["seed", "grid"],
+)
+def test_sweep_cli_refuses_other_parameters_in_one_line(
+    tmp_path,
+    capsys,
+    fake_sweep,  # noqa: F811
+    other,
+    differing,
+):
     out = tmp_path / "sweep"
     sweep.run_sweep(tiny_cfg(batch_worlds=4), out, progress=False)
     before = hashes(out)
-    argv = ["experiment", "sweep", "--geometry", "rect", "--grid", "tiny", "--seed", "3"]
+    ran = len(fake_sweep)
+    argv = ["experiment", "sweep", "--geometry", "rect", *other]
     rc, _, err = peghole([*argv, "--engine", "mujoco", "--out", out], capsys)
     assert rc == 2
-    assert_one_line(err, "holds a rect sweep of other parameters", "--force")
+    assert_one_line(err, "holds a rect sweep of other parameters", differing, "--force")
     assert hashes(out) == before
+    assert len(fake_sweep) == ran  # refused before any slice
 
 
 def test_a_sweep_whose_output_is_locked_is_refused(tmp_path, holder, fake_sweep):  # noqa: F811
@@ -215,6 +228,36 @@ def test_a_name_too_long_for_its_temporary_names_is_refused_before_the_work(tmp_
     ok = tmp_path / ("b" * (255 - fileio.TEMP_NAME_EXTRA))
     fileio.write_text(ok, "fits\n")  # the longest accepted name: its temporary names fit
     fileio.check_out_file(ok)
+
+
+LONG_NAME_COMMANDS = {
+    "evaluate": ["evaluate", "rect", "--episodes", "1", "--out", "{out}"],
+    "compare": ["compare", "{d}/run", "--out", "{out}"],
+    "task make": ["task", "make", "{d}/peg.stl", "{d}/hole.stl", "--out", "{out}"],
+    "experiment contact-check": [
+        "experiment",
+        "contact-check",
+        "--engine",
+        "mujoco",
+        "--out",
+        "{out}",
+    ],
+}
+
+
+@pytest.mark.parametrize("case", sorted(LONG_NAME_COMMANDS))
+def test_every_writer_checks_its_name_with_the_temporary_suffix_first(tmp_path, capsys, case):
+    """evaluate, compare and task make (after CoACD) failed after their work on a name that
+    fits alone but not with its temporary suffix: each is refused first, in one line."""
+    (tmp_path / "run").mkdir()
+    (tmp_path / "keep.txt").write_text("the user's\n")
+    out = tmp_path / ("a" * (255 - fileio.TEMP_NAME_EXTRA + 1))
+    before = hashes(tmp_path)
+    argv = [a.format(d=tmp_path, out=out) for a in LONG_NAME_COMMANDS[case]]
+    rc, _, err = peghole(argv, capsys)
+    assert rc == 2
+    assert_one_line(err, "the temporary names written beside it", "at most 241 bytes")
+    assert hashes(tmp_path) == before
 
 
 # ---------------------------------------------------------------------- 3. final policy

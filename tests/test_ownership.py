@@ -17,10 +17,12 @@ import numpy as np
 import pytest
 from test_faults import assert_one_line, peghole
 
-from peghole_mjx import cli, fileio
+from peghole_mjx import cli, deploy, fileio
 from peghole_mjx.deploy import DeployedPolicy
 from peghole_mjx.errors import CorruptFileError, UserInputError
 from peghole_mjx.policies import save_policy
+
+Z3 = np.zeros(3)
 
 
 def hashes(folder: Path) -> dict[str, str]:
@@ -159,6 +161,20 @@ def test_train_refuses_a_non_empty_folder_that_is_not_a_run(tmp_path, capsys):
     assert sorted(p.name for p in out.iterdir()) == ["metrics.csv", "summary.json"]
 
 
+def test_train_refuses_a_copy_of_a_published_policy_folder(tmp_path, capsys):
+    """A published policy folder has metrics.csv, summary.json and curves.png but no run.json:
+    a new run into a copy of it is refused and overwrites none of them."""
+    from peghole_mjx import policies
+
+    out = tmp_path / "rect_copy"
+    shutil.copytree(Path(policies.__file__).parent / "rect_extract", out)
+    before = hashes(tmp_path)
+    rc, _, err = peghole(["train", "--env", "RectExtract", "--quick", "--out", out], capsys)
+    assert rc == 2
+    assert_one_line(err, f"--out {out} is not empty", "no run.json", "metrics.csv")
+    assert hashes(tmp_path) == before
+
+
 def test_train_refuses_an_empty_out(tmp_path, capsys, monkeypatch):
     monkeypatch.chdir(tmp_path)
     (tmp_path / "metrics.csv").write_text("mine\n")
@@ -295,3 +311,40 @@ def test_an_action_that_is_not_one_vector_is_refused(export_copy, shape):
     with pytest.raises(UserInputError, match=rf"shape \({shape[0]}, ?(\d*)\) refused: one action"):
         p.decode(np.zeros(shape))
     assert p.decode(np.zeros(8)).step == 1  # nothing advanced before
+
+
+@pytest.mark.parametrize(
+    ("call", "match"),
+    [
+        (lambda p: p.flange_pose(Z3, np.eye(3), Z3, Z3), r"hole_rot .* got shape \(3,\)"),
+        (lambda p: p.flange_pose(Z3, np.eye(2), Z3, np.eye(3)), r"flange_rot .* shape \(2, 2\)"),
+        (lambda p: p.flange_pose(Z3, np.eye(3), Z3, np.full((3, 3), np.nan)), "hole_rot holds NaN"),
+        (lambda p: p.wrench_from_sensor(Z3, Z3, Z3), r"sensor_rot_in_hole .* shape \(3,\)"),
+        (lambda p: p.wrench_from_sensor(Z3, Z3, "x"), "sensor_rot_in_hole must be a 3 x 3"),
+        (lambda p: deploy.rot_from_rotvec(np.ones((3, 1))), r"got shape \(3, 1\)"),
+        (lambda p: deploy.rot_from_rotvec(np.ones(2)), r"got shape \(2,\)"),
+        (lambda p: deploy.rotvec_from_mat(np.eye(2)), r"got shape \(2, 2\)"),
+    ],
+    ids=[
+        "hole_rot_vector",
+        "flange_rot_2x2",
+        "hole_rot_nan",
+        "sensor_rot_vector",
+        "sensor_rot_text",
+        "rotvec_column",
+        "rotvec_2",
+        "mat_2x2",
+    ],
+)
+def test_wrong_shaped_arguments_to_the_public_helpers_are_one_line(export_copy, call, match):
+    """The deploy module's public helpers (reading poses, an F/T sensor, rotations) refuse
+    an argument of the wrong shape, or a non-finite rotation, in one line (an IndexError or a
+    matmul ValueError before); nothing of the policy's state changes."""
+    p = DeployedPolicy(export_copy)
+    p.reset(commanded_tip_m=(0.0, 0.0, -0.03))
+    with pytest.raises(UserInputError, match=match) as e:
+        call(p)
+    assert "\n" not in str(e.value)
+    pos, tilt = p.flange_pose(Z3, np.eye(3), Z3, np.eye(3))  # the right shapes: accepted
+    assert pos.shape == tilt.shape == (3,) and np.all(np.isfinite(tilt))
+    assert p.wrench_from_sensor(Z3, Z3, np.eye(3)).shape == (6,)

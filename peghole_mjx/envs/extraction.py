@@ -508,7 +508,7 @@ class PegHoleEnv(PegHoleBase):
         return terms, failure * (1.0 - terminal_failure)
 
     def step(self, state: State, action: jax.Array) -> State:
-        if jnp.shape(action)[-1:] != (self.action_size,):  # at trace time: costs nothing
+        if jnp.shape(action) != (self.action_size,):  # at trace time (per world): costs nothing
             raise UserInputError(
                 f"action of shape {jnp.shape(action)}: {type(self).__name__} takes "
                 f"{self.action_size} actions per world"
