@@ -472,6 +472,7 @@ BROAD_HANDLERS = {
     "deploy.py": 1,  # onnxruntime's own error classes for a damaged file -> one line
     "policies/export.py": 1,  # remove the half-written export, then re-raise
     "envs/task_make.py": 1,  # remove the half-written task folder, then re-raise
+    "lock.py": 1,  # record the files a writer changed before it failed, then re-raise
 }
 
 
