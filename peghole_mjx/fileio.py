@@ -255,14 +255,15 @@ def recorded_parameters(folder: str | Path) -> dict | None:
     return params if isinstance(params, dict) else None
 
 
-def differences(a, b, prefix: str = "") -> list[str]:
-    """The keys (dotted) whose values differ between two JSON trees."""
+def differences(a, b, prefix: str = "", whole: str = "parameters") -> list[str]:
+    """The keys (dotted) whose values differ between two JSON trees (``whole``: the name
+    given when the trees themselves differ and are not both dicts)."""
     if isinstance(a, dict) and isinstance(b, dict):
         out = []
         for k in sorted(set(a) | set(b), key=str):
-            out += differences(a.get(k), b.get(k), f"{prefix}{k}.")
+            out += differences(a.get(k), b.get(k), f"{prefix}{k}.", whole)
         return out
-    return [] if a == b else [prefix.rstrip(".") or "parameters"]
+    return [] if a == b else [prefix.rstrip(".") or whole]
 
 
 def check_same_parameters(

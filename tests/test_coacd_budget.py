@@ -16,7 +16,8 @@ manifold3d = pytest.importorskip("manifold3d")
 pytest.importorskip("coacd")
 
 from peghole_mjx.cli import main  # noqa: E402
-from peghole_mjx.envs import task_cli  # noqa: E402
+from peghole_mjx.envs import task_cli, task_make  # noqa: E402
+from peghole_mjx.errors import UserInputError  # noqa: E402
 from peghole_mjx.geometry import coacd_budget as cb  # noqa: E402
 from peghole_mjx.geometry.decompose import CoacdParams  # noqa: E402
 
@@ -123,12 +124,17 @@ def test_a_coarse_run_past_its_budget_gives_lower_bounds():
     assert not est.complete and "at least" in est.text()
 
 
-def test_task_make_refuses_a_coacd_part_over_the_cap_within_30_s(tmp_path, capsys):
+def make_argv(tmp_path) -> list[str]:
+    """``peghole task make`` of the chamfered pair, exported as STL into ``tmp_path``."""
     peg, hole = chamfered_pair()
     peg.export(tmp_path / "peg.stl")
     hole.export(tmp_path / "hole.stl")
+    return ["task", "make", str(tmp_path / "peg.stl"), str(tmp_path / "hole.stl")]
+
+
+def test_task_make_refuses_a_coacd_part_over_the_cap_within_30_s(tmp_path, capsys):
+    argv = make_argv(tmp_path)
     out = tmp_path / "task"
-    argv = ["task", "make", str(tmp_path / "peg.stl"), str(tmp_path / "hole.stl")]
     t = time.perf_counter()
     rc = main([*argv, "--out", str(out), "--max-hulls", "4"])
     took = time.perf_counter() - t
@@ -146,11 +152,8 @@ def test_task_make_refuses_a_coacd_part_over_the_cap_within_30_s(tmp_path, capsy
 def test_task_make_refuses_a_coacd_part_over_its_time_cap_within_30_s(tmp_path, capsys):
     """The other cap: an estimated time past --coacd-max-s is refused up front in one line
     naming the estimate and the --coacd-max-s that would fit, before the full run."""
-    peg, hole = chamfered_pair()
-    peg.export(tmp_path / "peg.stl")
-    hole.export(tmp_path / "hole.stl")
+    argv = make_argv(tmp_path)
     out = tmp_path / "task"
-    argv = ["task", "make", str(tmp_path / "peg.stl"), str(tmp_path / "hole.stl")]
     t = time.perf_counter()
     rc = main([*argv, "--out", str(out), "--coacd-max-s", "1"])
     took = time.perf_counter() - t
@@ -169,12 +172,7 @@ def test_task_make_accepts_a_coacd_part_within_30_s_with_a_bar_of_a_fraction(
     """A part under the caps: the verdict (the full run's start) within 30 s of the command's
     start, then the full run's bar counts parts searched out of the estimated total and ends
     full. The pipeline after the pieces is stubbed (it ends the command in one line)."""
-    from peghole_mjx.envs import task_make
-    from peghole_mjx.errors import UserInputError
-
-    peg, hole = chamfered_pair()
-    peg.export(tmp_path / "peg.stl")
-    hole.export(tmp_path / "hole.stl")
+    argv = make_argv(tmp_path)
     starts = []
     real = task_make.run_coacd
 
@@ -187,7 +185,6 @@ def test_task_make_accepts_a_coacd_part_within_30_s_with_a_bar_of_a_fraction(
 
     monkeypatch.setattr(task_make, "run_coacd", timed)
     monkeypatch.setattr(task_make, "build_task", stub)
-    argv = ["task", "make", str(tmp_path / "peg.stl"), str(tmp_path / "hole.stl")]
     argv += ["--out", str(tmp_path / "task"), "--threshold", "0.05", "--mcts-iterations", "40"]
     t = time.perf_counter()
     assert main([*argv, "--resolution", "1000"]) == 2

@@ -293,13 +293,12 @@ def build_task(
     progress: bool = False,
     t0: float | None = None,
     parameters: dict | None = None,
-    force: bool = False,
 ) -> dict[str, Any]:
     """Steps 2-6 of the module docstring for meshes and pieces in metres (assembled pose),
     the meshes already checked as a peg in its hole (``check_assembly``); returns
     ``task.json``'s content. ``parameters``: what the task is made of and with, recorded in
-    the folder's ownership manifest (a rerun of others is refused unless ``force``); the
-    caller holds the output's lock."""
+    the folder's ownership manifest; the caller holds the output's lock and has checked the
+    folder's parameters under it (``check_out_task_dir``)."""
     t0 = time.perf_counter() if t0 is None else t0
     out = Path(out)
     friction = check("friction", friction)
@@ -345,7 +344,8 @@ def build_task(
         tf.PEG_HULLS: tf.hulls_json(g.peg_hulls, "peg").encode(),
         tf.HOLE_HULLS: tf.hulls_json(g.hole_hulls, "hole").encode(),
     }
-    check_out_task_dir(out, sum(len(v) for v in meshes.values()), parameters, force)
+    # the folder's parameters were checked under the lock the caller holds: here its room
+    check_out_task_dir(out, sum(len(v) for v in meshes.values()))
 
     def files(measured: int, cap: int, counts: dict, timing: dict) -> dict[str, bytes]:
         spec = _spec(g, name, friction, radial, face_vertices, measured, cap)
@@ -597,7 +597,6 @@ def make_task(
             progress=progress,
             t0=t0,
             parameters=parameters,
-            force=force,
         )
 
 
@@ -661,7 +660,6 @@ def make_builtin(
             progress=progress,
             t0=t0,
             parameters=parameters,
-            force=force,
         )
 
 

@@ -351,16 +351,6 @@ def settings_path(out: Path, geometry: str) -> Path:
     return Path(out) / f".compliance_sweep_{geometry}.settings.json"
 
 
-def _differences(a, b, prefix: str = "") -> list[str]:
-    """The keys (dotted) whose values differ between two JSON trees."""
-    if isinstance(a, dict) and isinstance(b, dict):
-        out = []
-        for k in sorted(set(a) | set(b), key=str):
-            out += _differences(a.get(k), b.get(k), f"{prefix}{k}.")
-        return out
-    return [] if a == b else [prefix.rstrip(".") or "settings"]
-
-
 def _recorded_settings(out: Path, geometry: str) -> tuple[dict | None, dict]:
     """``(settings, holder)`` recorded for the sweep in ``out``: its settings record, else the
     ``settings`` of its results (written before 2026-12-04); ``(None, {})`` if neither."""
@@ -387,7 +377,7 @@ def check_settings(cfg: SweepConfig, out: Path, force: bool, record: bool = True
     mine = json.loads(json.dumps(clean_json(cfg.settings())))
     recorded, holder = _recorded_settings(out, geometry)
     if recorded is not None and recorded != mine and not force:
-        diff = _differences(mine, recorded)
+        diff = fileio.differences(mine, recorded, whole="settings")
         by = f" by pid {holder['pid']} on {holder.get('host', '?')}" if "pid" in holder else ""
         raise UserInputError(
             f"--out {out} holds a {geometry} sweep of other parameters (recorded{by}; "
