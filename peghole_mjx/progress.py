@@ -16,10 +16,12 @@ it compiles, so the line keeps ticking.
 
 from __future__ import annotations
 
+import os
 import sys
 import threading
 from collections.abc import Iterator
 from contextlib import contextmanager
+from pathlib import Path
 
 from tqdm import tqdm
 
@@ -86,3 +88,35 @@ def phase(label: str, enabled: bool = True) -> Iterator[None]:
 def compiling(what: str, enabled: bool = True):
     """:func:`phase` for an XLA compile: ``compiling <what> (first run only; cached after)``."""
     return phase(f"compiling {what} ({COMPILE_NOTE})", enabled)
+
+
+#: ``time.perf_counter()`` when the running ``peghole`` command began (:func:`command_clock`)
+_command_start: float | None = None
+
+
+@contextmanager
+def command_clock(started: float) -> Iterator[None]:
+    """While a command runs, :func:`command_start` is ``started`` (``time.perf_counter()``
+    when it began); set by :func:`peghole_mjx.cli.main`."""
+    global _command_start
+    previous, _command_start = _command_start, started
+    try:
+        yield
+    finally:
+        _command_start = previous
+
+
+def command_start() -> float | None:
+    """``time.perf_counter()`` when the running command began, None outside a command."""
+    return _command_start
+
+
+def process_age_s() -> float | None:
+    """Seconds since this process started, its imports included (Linux's ``/proc``, to 10
+    ms), None where that cannot be read."""
+    try:
+        fields = Path("/proc/self/stat").read_text().rsplit(")", 1)[1].split()
+        uptime = float(Path("/proc/uptime").read_text().split()[0])
+        return max(uptime - int(fields[19]) / os.sysconf("SC_CLK_TCK"), 0.0)
+    except (OSError, ValueError, IndexError):
+        return None

@@ -6,19 +6,23 @@ only. Skipped without the ``cad`` extra."""
 
 import argparse
 import re
+import subprocess
+import sys
 import time
 
-import numpy as np
 import pytest
 
 trimesh = pytest.importorskip("trimesh")
 manifold3d = pytest.importorskip("manifold3d")
 pytest.importorskip("coacd")
 
+from benchmarks.studies.coacd_verdict import chamfered_pair  # noqa: E402
+from peghole_mjx import progress as prog  # noqa: E402
 from peghole_mjx.cli import main  # noqa: E402
 from peghole_mjx.envs import task_cli, task_make  # noqa: E402
 from peghole_mjx.errors import UserInputError  # noqa: E402
 from peghole_mjx.geometry import coacd_budget as cb  # noqa: E402
+from peghole_mjx.geometry import decompose  # noqa: E402
 from peghole_mjx.geometry.decompose import CoacdParams  # noqa: E402
 
 #: CoACD 1.0.14's info log of a cube less an octagonal bore (threshold 0.05): rounds of 1, 2,
@@ -43,27 +47,6 @@ LOG_END = """\
 [CoACD] [info] Compute Time: 13.88s
 [CoACD] [info] # Convex Hulls: 8
 """
-
-
-def _tm(m):
-    mesh = m.to_mesh()
-    return trimesh.Trimesh(np.asarray(mesh.vert_properties)[:, :3], np.asarray(mesh.tri_verts))
-
-
-def chamfered_pair(c: float = 0.25, chamfer: float = 2.0):
-    """A 10 x 10 x 25 mm square peg, 15 mm deep in a blind square hole ``c`` larger all round
-    whose mouth is chamfered ``chamfer`` mm (not an extrusion, not a revolution: CoACD), in a
-    30 x 30 x 20 mm block; mm."""
-    sq = manifold3d.CrossSection.square
-    peg = manifold3d.Manifold.extrude(sq((10.0, 10.0), center=True), 25.0).translate((0, 0, -15))
-    block = manifold3d.Manifold.cube((30, 30, 20), center=True).translate((0, 0, -10))
-    w = 10 + 2 * c
-    cavity = manifold3d.Manifold.extrude(sq((w, w), center=True), 16.0).translate((0, 0, -15))
-    k = (w + 2 * chamfer) / w
-    mouth = manifold3d.Manifold.extrude(
-        sq((w, w), center=True), chamfer + 1e-3, scale_top=(k, k)
-    ).translate((0, 0, -chamfer))
-    return _tm(peg), _tm(block - cavity - mouth)
 
 
 def bored_cube():
@@ -126,7 +109,7 @@ def test_a_coarse_run_past_its_budget_gives_lower_bounds():
 
 def make_argv(tmp_path) -> list[str]:
     """``peghole task make`` of the chamfered pair, exported as STL into ``tmp_path``."""
-    peg, hole = chamfered_pair()
+    peg, hole = chamfered_pair(fine=False)
     peg.export(tmp_path / "peg.stl")
     hole.export(tmp_path / "hole.stl")
     return ["task", "make", str(tmp_path / "peg.stl"), str(tmp_path / "hole.stl")]
@@ -204,3 +187,75 @@ def test_the_cli_default_is_the_modules_time_cap():
     task_cli.add_parser(p.add_subparsers())
     args = p.parse_args(["task", "make", "a.stl", "b.stl", "--out", "x"])
     assert args.coacd_max_s == cb.COACD_MAX_S
+
+
+def test_the_estimate_budget_is_what_is_left_of_the_30_s():
+    assert cb.estimate_budget(0.0, 1) == cb.ESTIMATE_S
+    assert cb.estimate_budget(0.0, 2) == cb.ESTIMATE_S / 2
+    late = cb.VERDICT_S - cb.VERDICT_MARGIN_S - 10.0
+    assert cb.estimate_budget(late, 1) == pytest.approx(10.0)
+    assert cb.estimate_budget(late, 2) == pytest.approx(5.0)
+    assert cb.estimate_budget(cb.VERDICT_S, 1) == cb.MIN_ESTIMATE_S
+
+
+def test_task_make_counts_the_budget_from_the_commands_start(tmp_path, monkeypatch):
+    """Inside a command (its clock started 20 s ago: the imports) the coarse run gets what is
+    left of the 30 s; outside one the clock starts with make_task."""
+    budgets = []
+
+    def fake_estimate(mesh, params, budget_s, run):
+        budgets.append(budget_s)
+        raise UserInputError("estimate reached")
+
+    monkeypatch.setattr(cb, "estimate", fake_estimate)
+    argv = make_argv(tmp_path)
+    peg, hole = argv[2], argv[3]
+    with prog.command_clock(time.perf_counter() - 20.0):
+        with pytest.raises(UserInputError, match="estimate reached"):
+            task_make.make_task(peg, hole, tmp_path / "a")
+        assert prog.command_start() is not None
+    assert prog.command_start() is None
+    with pytest.raises(UserInputError, match="estimate reached"):
+        task_make.make_task(peg, hole, tmp_path / "b")
+    left = cb.VERDICT_S - cb.VERDICT_MARGIN_S - 20.0
+    assert cb.MIN_ESTIMATE_S <= budgets[0] <= left, budgets
+    assert budgets[1] > left + 10.0, budgets
+
+
+def test_the_process_age_counts_from_the_process_start():
+    code = (
+        "import time; time.sleep(1.5); from peghole_mjx.progress import process_age_s; "
+        "print(process_age_s())"
+    )
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
+    assert 1.5 <= float(out.stdout) < 15.0, out
+
+
+def test_a_coacd_child_without_a_result_is_one_line(monkeypatch):
+    """The child's exit status comes back; one that ends without writing a result (killed
+    for memory, a crash) is named in one line."""
+    assert decompose._in_child(["-c", "import sys; sys.exit(3)"]) == 3
+    monkeypatch.setattr(decompose, "_in_child", lambda argv, stdout=None, watch=None: -9)
+    with pytest.raises(UserInputError, match=r"its process exited with -9: out of memory"):
+        decompose.run_coacd(bored_cube())
+
+
+def test_fine_meshes_are_checked_in_seconds_and_interference_still_found():
+    """A fine export (3,072 / 9,216 faces): the interference check tests only the points in
+    the bounds of the parts' intersection (a boolean); the pair passes, and the same peg moved
+    0.4 mm into a wall of its 0.25 mm gap is refused with the depth."""
+    mm = 1e-3
+    peg, hole = chamfered_pair(fine=True)
+    assert (len(peg.faces), len(hole.faces)) == (3072, 9216)
+    peg.apply_scale(mm)
+    hole.apply_scale(mm)
+    shared = decompose.overlap(peg, hole)
+    assert shared is not None and shared.volume_mm3 == pytest.approx(0.0, abs=1e-6)
+    decompose.check_assembly(peg, hole)
+    moved = peg.copy()
+    moved.apply_translation([0.4 * mm, 0.0, 0.0])
+    shared = decompose.overlap(moved, hole)
+    # 0.15 mm x 10 mm x the 13 mm of straight wall below the chamfer (and a sliver in it)
+    assert shared.volume_mm3 == pytest.approx(0.15 * 10 * 13, rel=0.02)
+    with pytest.raises(UserInputError, match=r"no interference.*0\.1[45]\d* mm deep"):
+        decompose.check_assembly(moved, hole)

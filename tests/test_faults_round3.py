@@ -168,26 +168,22 @@ def test_coacd_refuses_a_mesh_of_too_many_faces(monkeypatch):
 
 
 HANG = """
-import os, signal, sys, time
-from pathlib import Path
+import sys
 
 from peghole_mjx import cli
 from peghole_mjx.geometry import decompose
 
-
-def hang(conn, pidfile):
-    # as CoACD's native loop: deaf to SIGINT and SIGTERM
-    signal.signal(signal.SIGTERM, signal.SIG_IGN)
-    signal.signal(signal.SIGINT, signal.SIG_IGN)
-    Path(pidfile).write_text(str(os.getpid()))
-    while True:
-        time.sleep(0.1)
-
+# as CoACD's native loop: deaf to SIGINT and SIGTERM
+CHILD = (
+    "import os, signal, sys, time; from pathlib import Path; "
+    "signal.signal(signal.SIGTERM, signal.SIG_IGN); signal.signal(signal.SIGINT, signal.SIG_IGN); "
+    "Path(sys.argv[1]).write_text(str(os.getpid()))\\nwhile True: time.sleep(0.1)"
+)
 
 if __name__ == "__main__":
     cli._handle_sigterm()
     try:
-        decompose._in_child(hang, sys.argv[1])
+        decompose._in_child(["-c", CHILD, sys.argv[1]])
     except cli.Terminated:
         print("terminated", flush=True)
         sys.exit(cli.EXIT_TERMINATED)

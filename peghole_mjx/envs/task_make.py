@@ -553,7 +553,9 @@ def make_task(
             coacd_parts = sum(
                 pieces == "coacd" or isinstance(exact_made.get(k), str) for k in meshes
             )
-            estimate_s = coacd_budget.ESTIMATE_S / max(coacd_parts, 1)
+            # counted from the command's start where there is one (its imports included)
+            began = prog.command_start() or t0
+            estimate_s = coacd_budget.estimate_budget(time.perf_counter() - began, coacd_parts)
             for label, mesh in meshes.items():
                 hulls[label], records[label] = _part_pieces(
                     label, mesh, params, pieces, progress, caps.max_hulls, exact_made.get(label),

@@ -39,9 +39,16 @@ from peghole_mjx.errors import UserInputError
 from peghole_mjx.geometry.decompose import CoacdParams, run_coacd
 from peghole_mjx.geometry.specs import MM
 
+#: seconds from the start of ``task make`` within which a part for CoACD is refused or
+#: accepted (issue 54's acceptance)
+VERDICT_S = 30.0
 #: seconds the coarse estimates of a pair may run in all (shared by the parts that need
-#: CoACD), under the 30 s within which issue 54 asks for the verdict
+#: CoACD), at most: less when the checks before them took longer (:func:`estimate_budget`)
 ESTIMATE_S = 24.0
+#: seconds kept for what follows the estimates before the verdict (the refusal's options)
+VERDICT_MARGIN_S = 5.0
+#: the shortest coarse run given a part (its lower bounds decide when it does not end)
+MIN_ESTIMATE_S = 2.0
 #: the coarse run's tree search: this cap on the user's parameters (decided 2026-12-05,
 #: docs/research/models.md, bounded CoACD: fewer iterations keep CoACD's cuts and so its
 #: pieces, a lower resolution or fewer nodes multiply the pieces)
@@ -63,6 +70,14 @@ COACD_MAX_S = 600.0
 _POOL = re.compile(r"iter (\d+) -+ waiting pool: (\d+)")
 _PROCESSING = re.compile(r"Processing \[([\d.]+)%\]")
 _HULLS = re.compile(r"# Convex Hulls: (\d+)")
+
+
+def estimate_budget(elapsed_s: float, parts: int) -> float:
+    """Seconds each of ``parts`` coarse runs may take when ``elapsed_s`` have gone since the
+    command began: :data:`ESTIMATE_S` shared, cut so that the verdict comes within
+    :data:`VERDICT_S` (no less than :data:`MIN_ESTIMATE_S`)."""
+    left = min(ESTIMATE_S, VERDICT_S - VERDICT_MARGIN_S - elapsed_s)
+    return max(left / max(parts, 1), MIN_ESTIMATE_S)
 
 
 class CoacdLog:

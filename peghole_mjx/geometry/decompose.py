@@ -13,10 +13,11 @@ hulls then eat the clearance.
 
 from __future__ import annotations
 
+import json
 import math
-import multiprocessing
 import os
-import signal
+import subprocess
+import sys
 import tempfile
 import warnings
 from dataclasses import asdict, dataclass, field
@@ -135,59 +136,34 @@ COACD_KILL_AFTER_S = 2.0
 WATCH_S = 0.25
 
 
-def _coacd_child(conn, vertices, faces, kwargs, log_path=None) -> None:
-    """CoACD in the child process: sends ``("ok", [(verts, faces), ...])`` or ``("error",
-    text)``. Ctrl-C is the parent's to handle (it ends this process). ``log_path``: CoACD's
-    ``info`` log (its standard output) written there, for the parent to follow."""
-    signal.signal(signal.SIGINT, signal.SIG_IGN)
-    try:
-        coacd = _cad("coacd")
-        if log_path is not None:
-            with open(log_path, "wb", buffering=0) as f:
-                os.dup2(f.fileno(), 1)
-        coacd.set_log_level("error" if log_path is None else "info")
-        parts = coacd.run_coacd(coacd.Mesh(vertices, faces), **kwargs)
-        conn.send(("ok", [(np.asarray(v), np.asarray(f)) for v, f in parts]))
-    except BaseException as exc:  # everything is reported to the parent, in one line
-        conn.send(("error", f"{type(exc).__name__}: {exc}"))
-    finally:
-        conn.close()
-
-
-def _in_child(target, *args, watch=None):
-    """``target(conn, *args)`` in a child process (``spawn``: a fresh interpreter, no JAX
-    threads forked); its answer. CoACD is native code that holds the GIL and ignores
-    SIGINT/SIGTERM for its whole run: here the parent waits, calling ``watch()`` every
-    :data:`WATCH_S` seconds (which may raise to stop the child), and on Ctrl-C or SIGTERM (the
-    CLI's ``Terminated``) or any error it terminates the child (SIGKILL after
-    :data:`COACD_KILL_AFTER_S`) before re-raising."""
-    ctx = multiprocessing.get_context("spawn")
-    parent, child = ctx.Pipe(duplex=False)
-    proc = ctx.Process(target=target, args=(child, *args), daemon=True)
-    proc.start()
-    child.close()
-    try:
+def _in_child(args: list[str], stdout: Path | None = None, watch=None) -> int:
+    """``python ARGS`` in a child process; its exit status. CoACD is native code that holds
+    the GIL and ignores SIGINT/SIGTERM for its whole run: here the parent waits, calling
+    ``watch()`` every :data:`WATCH_S` seconds (which may raise to stop the child), and on
+    Ctrl-C or SIGTERM (the CLI's ``Terminated``) or any error it terminates the child (SIGKILL
+    after :data:`COACD_KILL_AFTER_S`) before re-raising. ``stdout``: a file the child's
+    standard output is appended to; its standard error is dropped (a child reports in its
+    result files, :mod:`peghole_mjx.geometry.coacd_child`)."""
+    with open(stdout if stdout is not None else os.devnull, "ab") as out:
+        proc = subprocess.Popen(
+            [sys.executable, *args], stdin=subprocess.DEVNULL, stdout=out,
+            stderr=subprocess.DEVNULL,
+        )  # fmt: skip
         try:
-            while not parent.poll(WATCH_S):
-                if watch is not None:
-                    watch()
-            answer = parent.recv()
-        except EOFError:
-            proc.join()
-            raise UserInputError(
-                f"CoACD ended without a result (its process exited with {proc.exitcode}: "
-                "out of memory or a crash); simplify the mesh or change the CoACD parameters"
-            ) from None
-        proc.join()
-    finally:
-        if proc.is_alive():
-            proc.terminate()
-            proc.join(COACD_KILL_AFTER_S)
-            if proc.is_alive():
-                proc.kill()
-                proc.join()
-        parent.close()
-    return answer
+            while True:
+                try:
+                    return proc.wait(WATCH_S)
+                except subprocess.TimeoutExpired:
+                    if watch is not None:
+                        watch()
+        finally:
+            if proc.poll() is None:
+                proc.terminate()
+                try:
+                    proc.wait(COACD_KILL_AFTER_S)
+                except subprocess.TimeoutExpired:
+                    proc.kill()
+                    proc.wait()
 
 
 def run_coacd(mesh, params: CoacdParams = CoacdParams(), watch=None, log=None) -> list[np.ndarray]:
@@ -223,24 +199,33 @@ def run_coacd(mesh, params: CoacdParams = CoacdParams(), watch=None, log=None) -
         max_ch_vertex=params.max_ch_vertex,
         seed=params.seed,
     )
-    verts, faces = np.asarray(mesh.vertices), np.asarray(mesh.faces)
-    if log is None:
-        status, parts = _in_child(_coacd_child, verts, faces, kwargs)
-    else:
-        with tempfile.TemporaryDirectory(prefix="peghole-coacd-") as tmp:
-            path = Path(tmp) / "coacd.log"
-            path.touch()
-            with open(path, "rb") as f:
+    with tempfile.TemporaryDirectory(prefix="peghole-coacd-") as tmp:
+        folder = Path(tmp)
+        np.savez(folder / "mesh.npz", vertices=mesh.vertices, faces=mesh.faces)
+        options = {**kwargs, "log_level": "error" if log is None else "info"}
+        (folder / "options.json").write_text(json.dumps(options))
+        path = folder / "coacd.log"
+        path.touch()
+        with open(path, "rb") as f:
 
-                def look() -> None:
-                    log.feed(f.read().decode(errors="replace"))
-                    if watch is not None:
-                        watch(log)
-
-                status, parts = _in_child(_coacd_child, verts, faces, kwargs, str(path), watch=look)
+            def look() -> None:
                 log.feed(f.read().decode(errors="replace"))
-    if status != "ok":
-        raise UserInputError(f"CoACD failed: {parts}")
+                if watch is not None:
+                    watch(log)
+
+            argv = ["-m", "peghole_mjx.geometry.coacd_child", tmp]
+            code = _in_child(argv, path, watch=None if log is None else look)
+            if log is not None:
+                log.feed(f.read().decode(errors="replace"))
+        if (folder / "error.txt").exists():
+            raise UserInputError(f"CoACD failed: {(folder / 'error.txt').read_text()}")
+        if not (folder / "pieces.npz").exists():
+            raise UserInputError(
+                f"CoACD ended without a result (its process exited with {code}: out of memory "
+                "or a crash); simplify the mesh or change the CoACD parameters"
+            )
+        with np.load(folder / "pieces.npz") as z:
+            parts = [(z[f"v{i}"], z[f"f{i}"]) for i in range(len(z.files) // 2)]
     hulls = []
     for verts, faces in parts:
         hull = trimesh.Trimesh(verts, faces).convex_hull
@@ -254,7 +239,7 @@ WINDING_MAX_PAIRS = 200_000_000
 WINDING_CHUNK_PAIRS = 250_000
 
 
-def contains(mesh, pts: np.ndarray) -> np.ndarray:
+def contains(mesh, pts: np.ndarray, on_surface: bool | None = None) -> np.ndarray:
     """Which of ``pts`` lie inside the closed, outward-oriented ``mesh``: its generalised
     winding number at each point (the solid angles of its triangles summed, Van Oosterom and
     Strackee) above one half, in NumPy; trimesh's ray test (``mesh.contains``) past
@@ -262,7 +247,9 @@ def contains(mesh, pts: np.ndarray) -> np.ndarray:
     make): trimesh's ray test without embree took 20 s of the stepped pin's 22 s of checks
     (40 000 points, its 64-facet bore), the winding numbers give the same verdicts. A point
     whose winding number is not near a whole number (on the surface, or in the plane of a
-    face beside it, where the solid angles' signed zeros decide) takes the ray test."""
+    face beside it, where the solid angles' signed zeros decide) takes the ray test, or is
+    given ``on_surface`` when that is not None (a caller measuring depth: such a point is
+    on the surface, depth zero; the ray test took 7.6 s of a fine pair's 10 s of checks)."""
     pts = np.asarray(pts, float)
     tri = np.asarray(mesh.triangles, float)
     if len(pts) * len(tri) > WINDING_MAX_PAIRS or not len(pts):
@@ -287,7 +274,9 @@ def contains(mesh, pts: np.ndarray) -> np.ndarray:
     # a point on the surface (or in the plane of a face it touches) has no whole winding
     # number: those few go to the ray test, as before
     edge = np.abs(w - np.round(w)) > 0.25
-    if edge.any():
+    if edge.any() and on_surface is not None:
+        inside[edge] = on_surface
+    elif edge.any():
         inside[edge] = np.asarray(mesh.contains(pts[edge]), bool)
     return inside
 
@@ -373,24 +362,57 @@ def _surface_points(mesh, n: int, seed: int) -> np.ndarray:
 def _deepest_inside(solid, pts: np.ndarray) -> tuple[float, np.ndarray | None]:
     """Largest depth (m) of ``pts`` inside ``solid`` and where (None if none is inside)."""
     trimesh = _cad("trimesh")
-    inside = pts[contains(solid, pts)]
+    inside = pts[contains(solid, pts, on_surface=False)]  # a surface point: depth zero
     if not len(inside):
         return 0.0, None
-    _, dist, _ = trimesh.proximity.closest_point(solid, inside)
+    # in millimetres: trimesh 5.2's closest point on a triangle of a metre-scaled fine mesh
+    # falls back to its corners (its zero tolerance), 0.265 mm for 0.15 mm (2026-12-05)
+    solid_mm = solid.copy()
+    solid_mm.apply_scale(1.0 / MM)
+    _, dist, _ = trimesh.proximity.closest_point(solid_mm, inside / MM)
+    dist = dist * MM
     i = int(np.argmax(dist))
     return float(dist[i]), inside[i]
 
 
-def _interference_volume_mm3(peg, hole) -> float | None:
-    """Volume of the intersection of the two solids (mm^3), None without manifold3d."""
-    try:
-        import manifold3d  # noqa: F401  (trimesh's boolean engine)
-    except ImportError:
-        return None
-    try:
-        return float(peg.intersection(hole).volume) / MM**3
-    except (ValueError, RuntimeError, IndexError):  # extra detail; the depth is the verdict
-        return None
+@dataclass(frozen=True)
+class Overlap:
+    """The two solids' intersection by a boolean (manifold3d)."""
+
+    volume_mm3: float
+    bounds: np.ndarray | None  # (2, 3) m, None when the solids share no volume
+
+
+def overlap(peg, hole) -> Overlap | None:
+    """The intersection of two watertight meshes (metres) by manifold3d's boolean, or None
+    when manifold3d cannot read one of them. Decided 2026-12-05 (docs/research/models.md,
+    bounded CoACD): the sampled interference check took 29 s of a 3,072 / 9,216-face pair's
+    31 s in winding numbers; the boolean takes 0.02 s and bounds the points worth testing."""
+    manifold3d = _cad("manifold3d")
+    solids = []
+    for mesh in (peg, hole):
+        solid = manifold3d.Manifold(
+            manifold3d.Mesh64(
+                vert_properties=np.asarray(mesh.vertices, float) / MM,
+                tri_verts=np.asarray(mesh.faces, np.uint32),
+            )
+        )
+        if solid.status() != manifold3d.Error.NoError:
+            return None
+        solids.append(solid)
+    inter = solids[0] ^ solids[1]
+    if inter.is_empty():
+        return Overlap(0.0, None)
+    box = np.asarray(inter.bounding_box(), float).reshape(2, 3) * MM
+    return Overlap(float(inter.volume()), box)
+
+
+def _within(pts: np.ndarray, box: np.ndarray | None, pad: float) -> np.ndarray:
+    """The points of ``pts`` inside ``box`` grown by ``pad`` (none when ``box`` is None)."""
+    if box is None:
+        return pts[:0]
+    keep = np.all((pts >= box[0] - pad) & (pts <= box[1] + pad), axis=1)
+    return pts[keep]
 
 
 def check_assembly(peg, hole, units: str = "mm") -> None:
@@ -408,7 +430,8 @@ def check_assembly(peg, hole, units: str = "mm") -> None:
        swapped, fail;
     3. no interference: no sampled point of either part lies deeper than
        :data:`INTERFERENCE_TOL_MM` inside the other (the depth, where, and the intersection
-       volume by a boolean when manifold3d is installed);
+       volume); only the points within the bounds of the parts' intersection (a boolean,
+       :func:`overlap`) are tested, since no other point can lie inside the other part;
     4. extractable along +z: no sampled point of the peg has hole material straight above it
        (the upward ray from it meets the hole part beyond the tolerance): no undercut.
 
@@ -459,14 +482,22 @@ def check_assembly(peg, hole, units: str = "mm") -> None:
                 f"are not in its cavity (e.g. at {_fmt_mm(p)}, no hole part towards {name}); "
                 "are the files in the order PEG_MESH HOLE_MESH, in the assembled pose?"
             )
-    depth, where = _deepest_inside(hole, peg_pts)
+    # a point deeper than tol inside the other part lies in their intersection: only the
+    # points in its bounds (grown by tol) are tested, all of them without manifold3d
+    shared = overlap(peg, hole)
+    hole_pts = _surface_points(hole, CHECK_SAMPLES, seed=3)
+    if shared is not None:
+        peg_pts_in = _within(peg_pts, shared.bounds, 2 * tol)
+        hole_pts = _within(hole_pts, shared.bounds, 2 * tol)
+    else:
+        peg_pts_in = peg_pts
+    depth, where = _deepest_inside(hole, peg_pts_in) if len(peg_pts_in) else (0.0, None)
     label = "the peg reaches into the hole part"
-    if depth <= tol:
-        depth, where = _deepest_inside(peg, _surface_points(hole, CHECK_SAMPLES, seed=3))
+    if depth <= tol and len(hole_pts):
+        depth, where = _deepest_inside(peg, hole_pts)
         label = "the hole part reaches into the peg"
     if depth > tol:
-        vol = _interference_volume_mm3(peg, hole)
-        vol_text = "" if vol is None else f", interference volume {vol:.4g} mm^3"
+        vol_text = "" if shared is None else f", interference volume {shared.volume_mm3:.4g} mm^3"
         raise UserInputError(
             f"not a peg-hole (no interference): {label} up to {depth / MM:.4g} mm deep at "
             f"{_fmt_mm(where)}{vol_text} (tolerance {INTERFERENCE_TOL_MM:g} mm): the peg "
