@@ -463,9 +463,8 @@ BROAD_HANDLERS = {
     "training/run.py": 2,  # a learning-curve plot must never lose a finished run (warned)
     "training/seeds.py": 1,  # same, for a multi-seed run
     "experiments/report.py": 1,  # the analytic cross-check of one cell, recorded as an error
-    # trimesh's many exception types -> UserInputError (one line); CoACD's child process
-    # reports whatever ends it to the parent, in one line
-    "geometry/decompose.py": 2,
+    "geometry/decompose.py": 1,  # trimesh's many exception types -> UserInputError (one line)
+    "geometry/coacd_child.py": 1,  # CoACD's process reports whatever ends it, in one line
     "training/commands.py": 1,  # remove the empty --out a refused train created, then re-raise
     "policies/__init__.py": 2,  # remove the half-written policy folder, then re-raise
     "provenance.py": 1,  # device name for a result file: falls back to the CPU's

@@ -261,21 +261,17 @@ def test_ik_reports_unreachable_targets():
         mjcf.solve_tool_ik(s, np.array([3.0, 0.0, 0.2]), max_iter=50)
 
 
-def test_cli_bad_representation_and_cap_are_one_line_errors(tmp_path):
-    import subprocess
-    import sys
+def test_cli_bad_representation_and_cap_are_one_line_errors(tmp_path, capsys):
+    from peghole_mjx.cli import main
 
     for args, msg in (
         (["check", "--preset", "dual-2", "--representation", "sphere"], "unknown collision"),
         (["build", "--preset", "dual-2", "--contact-cap", "3", "--out", str(tmp_path)], "below"),
     ):
-        res = subprocess.run(
-            [sys.executable, "-m", "peghole_mjx.cli", "models", *args],
-            capture_output=True,
-            text=True,
-        )
-        lines = [ln for ln in res.stderr.splitlines() if ln.startswith("peghole: error")]
-        assert res.returncode == 2 and len(lines) == 1 and msg in lines[0], res.stderr
+        rc = main(["models", *args])
+        err = capsys.readouterr().err
+        lines = [ln for ln in err.splitlines() if ln.startswith("peghole: error")]
+        assert rc == 2 and len(lines) == 1 and msg in lines[0], err
 
 
 def test_capsule_mouth_lips_keep_the_clearance(monkeypatch):
