@@ -47,6 +47,14 @@ _SUITE_CONFIG = {
     "compile_cache": "cold",
     "tree": "a git archive copy of the commit, as CI's clone",
 }
+#: the stack of the 2026-12-05 local runs, warp-lang installed
+_VERSIONS_WARP = {
+    "mujoco": "4.0.1",
+    "mujoco-mjx": "3.17.0",
+    "jax": "0.10.2",
+    "brax": "0.14.2",
+    "warp-lang": "1.18.0",
+}
 _CI_UNKNOWN = {
     "device": "unknown: CI's machine is not recorded by the landing report",
     "versions": "unknown: CI installs what pyproject.toml allows; its versions are not recorded",
@@ -108,13 +116,7 @@ RECORDED: list[dict] = [
         "label": "loaded 2-core CPU (load 3-8 from a training run for the first minutes)",
         "wall_s": 3011,
         "device": "cpu (2 cores, x86_64)",
-        "versions": {
-            "mujoco": "4.0.1",
-            "mujoco-mjx": "3.17.0",
-            "jax": "0.10.2",
-            "brax": "0.14.2",
-            "warp-lang": "1.18.0",
-        },
+        "versions": _VERSIONS_WARP,
         "date": "2026-12-05",
         "command": " ".join(SUITE_COMMAND),
         "config": {**_SUITE_CONFIG, "warp_lang_installed": True},
@@ -150,13 +152,7 @@ RECORDED: list[dict] = [
         "the suite), the worktree: not a CI-like run, so outside the cold-cache range",
         "wall_s": 3707,
         "device": "cpu (2 cores, x86_64)",
-        "versions": {
-            "mujoco": "4.0.1",
-            "mujoco-mjx": "3.17.0",
-            "jax": "0.10.2",
-            "brax": "0.14.2",
-            "warp-lang": "1.18.0",
-        },
+        "versions": _VERSIONS_WARP,
         "date": "2026-12-05",
         "command": " ".join(SUITE_COMMAND) + " -p no:cacheprovider --durations=120",
         "config": {

@@ -29,6 +29,7 @@ import manifold3d
 import numpy as np
 import trimesh
 
+from benchmarks.common import write_rows
 from peghole_mjx import fileio
 from peghole_mjx import progress as prog
 from peghole_mjx.provenance import run_provenance
@@ -162,10 +163,7 @@ def main(argv: list[str] | None = None) -> int:
         "rows": rows,
     }
     fileio.write_text(args.out, dumps(doc, indent=2) + "\n")
-    lines = [",".join(COLUMNS)]
-    for r in rows:
-        lines.append(",".join(str(r[k]).replace(",", ";") for k in COLUMNS))
-    fileio.write_text(args.out.with_suffix(".csv"), "\n".join(lines) + "\n")
+    write_rows(args.out.with_suffix(".csv"), rows, COLUMNS)
     for r in rows:
         print({k: r[k] for k in COLUMNS if k != "last_line"}, r["last_line"][:200])
     return 0

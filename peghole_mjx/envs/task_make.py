@@ -554,7 +554,7 @@ def make_task(
                 pieces == "coacd" or isinstance(exact_made.get(k), str) for k in meshes
             )
             # counted from the command's start where there is one (its imports included)
-            began = prog.command_start() or t0
+            began = t0 if prog.command_start() is None else prog.command_start()
             estimate_s = coacd_budget.estimate_budget(time.perf_counter() - began, coacd_parts)
             for label, mesh in meshes.items():
                 hulls[label], records[label] = _part_pieces(
