@@ -17,6 +17,8 @@ import contextlib
 import io
 import sys
 
+import jax
+
 _buf = io.StringIO()
 with contextlib.redirect_stdout(_buf):
     from mujoco import mjx
@@ -29,4 +31,25 @@ for _line in _buf.getvalue().splitlines():
     if "import warp" not in _line and "import mujoco_warp" not in _line:
         print(_line, file=sys.stderr)
 
-__all__ = ["WARP_AVAILABLE", "mjx", "solver", "support", "tree_path_to_attr_str", "warp_types"]
+
+def default_engine() -> str:
+    """The engine ``auto`` stands for on this machine, for the envs and the experiments alike:
+    ``mujoco`` (MuJoCo C) where JAX has no GPU; on a CUDA GPU ``mjx-warp`` (MuJoCo Warp) when
+    warp-lang is installed, else ``mjx`` (MJX-JAX) (measured:
+    benchmarks/results/perf/throughput_engines_cpu-2core.json; decided 2026-12-05, issue 51:
+    one default for the env, the commands, the experiments, Gym and Playground)."""
+    backend = jax.default_backend()
+    if backend == "cpu":
+        return "mujoco"
+    return "mjx-warp" if backend in ("gpu", "cuda") and WARP_AVAILABLE else "mjx"
+
+
+__all__ = [
+    "WARP_AVAILABLE",
+    "default_engine",
+    "mjx",
+    "solver",
+    "support",
+    "tree_path_to_attr_str",
+    "warp_types",
+]

@@ -1,6 +1,10 @@
-"""Gymnasium adapters of the MJX extraction envs: NumPy in, NumPy out.
+"""Gymnasium adapters of the extraction envs: NumPy in, NumPy out.
 
-* :class:`PegHoleVectorEnv`: a ``gymnasium.vector.VectorEnv`` over N MJX worlds of one env
+The physics engine is the env config's default, ``auto`` (MuJoCo C without a GPU; on a CUDA GPU
+MJX-Warp with warp-lang, else MJX-JAX: :func:`peghole_mjx.envs.engines.default_engine`);
+``config_overrides={"engine": ...}`` names another.
+
+* :class:`PegHoleVectorEnv`: a ``gymnasium.vector.VectorEnv`` over N worlds of one env
   (``peghole_mjx.envs.load(name)``), stepped together by one jitted, vmapped call;
 * :class:`PegHoleGymEnv`: one world as a ``gymnasium.Env`` (passes
   ``gymnasium.utils.env_checker.check_env``), for single-env libraries such as

@@ -222,13 +222,18 @@ def test_state_renders_through_mjdata(env, fns):
     np.testing.assert_allclose(d.qpos, np.asarray(one.qpos), atol=1e-6)
 
 
-def test_a_policy_on_another_engine_is_a_cross_evaluation():
-    """The published rect policy was trained on MJX: evaluating it on MuJoCo C is refused in
-    one line naming the engine, before any rollout."""
-    from peghole_mjx.training.evaluate import evaluate
+def test_a_policy_on_another_engine_is_evaluated_as_trained():
+    """The published rect policy was trained on MJX: on MuJoCo C it is the same task (the
+    engine is provenance, issue 51, 2026-12-05), while a task entry is still a difference."""
+    from peghole_mjx.policies import load_policy
+    from peghole_mjx.training.evaluate import check_requested_env, requested_config
 
-    with pytest.raises(UserInputError, match=r"engine \(trained 'mjx', requested 'mujoco'\)"):
-        evaluate("rect", 2, env_overrides={"engine": "mujoco"}, progress=False)
+    bundle = load_policy("rect")
+    assert bundle.trained_engine() == {"engine": "mjx"}
+    on_c = requested_config(bundle, {"engine": "mujoco", "mujoco_threads": 2})
+    assert check_requested_env(bundle, on_c, cross=False) == {}
+    with pytest.raises(UserInputError, match="episode_length"):
+        check_requested_env(bundle, requested_config(bundle, {"episode_length": 7}), False)
 
 
 def test_engine_choices_map_to_config_entries():

@@ -110,7 +110,7 @@ def test_the_replica_is_the_mujoco_engines_trace():
 
 
 def test_an_unknown_engine_is_one_line(capsys, tmp_path):
-    with pytest.raises(UserInputError, match="engine must be mjx or mujoco, not 'bullet'"):
+    with pytest.raises(UserInputError, match="engine must be auto, mjx or mujoco, not 'bullet'"):
         cx.Extraction("rect-1", cx.ExperimentConfig(), engine="bullet")
     for argv in (
         ["experiment", "sweep", "--geometry", "rect", "--grid", "tiny", "--engine", "bullet"],
@@ -118,7 +118,9 @@ def test_an_unknown_engine_is_one_line(capsys, tmp_path):
     ):
         assert main([*argv, "--out", str(tmp_path / "o.json")]) == 2
         err = capsys.readouterr().err.strip()
-        assert "engine must be mjx or mujoco, not 'bullet'" in err and len(err.splitlines()) == 1
+        assert (
+            "engine must be auto, mjx or mujoco, not 'bullet'" in err and len(err.splitlines()) == 1
+        )
     # float64 is MuJoCo C's own precision: --x64 is MJX's option
     argv = ["experiment", "contact-check", "--engine", "mujoco", "--x64"]
     assert main(argv) == 2

@@ -323,7 +323,9 @@ def test_engine_and_its_threads_are_read():
     from peghole_mjx.envs.engine_mujoco import MujocoEngine, available_threads
     from peghole_mjx.envs.engines import MjxEngine
 
-    assert isinstance(envs.load(ENV).engine, MjxEngine)
+    assert isinstance(envs.load(ENV, config_overrides={"engine": "mjx"}).engine, MjxEngine)
+    auto = MujocoEngine if jax.default_backend() == "cpu" else MjxEngine  # engine auto
+    assert isinstance(envs.load(ENV).engine, auto)
     one = envs.load(ENV, config_overrides={"engine": "mujoco", "mujoco_threads": 1}).engine
     every = envs.load(ENV, config_overrides={"engine": "mujoco"}).engine
     assert isinstance(one, MujocoEngine) and one.threads == 1

@@ -29,7 +29,16 @@ from peghole_mjx.experiments import contact_check as cc
 from peghole_mjx.experiments import sweep
 from peghole_mjx.lock import _proc_start
 
-TINY = ["experiment", "sweep", "--geometry", "rect", "--grid", "tiny"]
+TINY = [
+    "experiment",
+    "sweep",
+    "--geometry",
+    "rect",
+    "--grid",
+    "tiny",
+    "--engine",
+    "mjx",
+]  # tiny_cfg
 
 
 # ---------------------------------------------------------------------- helpers

@@ -24,7 +24,7 @@ FACTORS = (1.0, 1.0, 30.0)
 
 
 def test_per_world_joint_damping_changes_the_trajectory():
-    env = envs.load("RectExtract")
+    env = envs.load("RectExtract", config_overrides={"engine": "mjx"})  # swaps the mjx.Model
     nominal = env.mjx_model
     assert float(np.max(np.asarray(nominal.dof_damping))) > 0.0  # the arm's joints are damped
     factors = jnp.asarray(FACTORS)

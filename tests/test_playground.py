@@ -17,7 +17,7 @@ pytest.importorskip(
     reason='MuJoCo Playground is not installed (pip install -e ".[playground]")',
 )
 
-from peghole_mjx import envs
+from peghole_mjx.envs import playground
 from peghole_mjx.envs.playground import (
     joint_damping_randomization,
     wrap_for_brax_training,
@@ -27,7 +27,8 @@ N_WORLDS = 2
 
 
 def test_playground_training_wrapper_runs_the_env_with_domain_randomisation():
-    env = envs.load("RectExtract")
+    env = playground.load("RectExtract")  # engine auto: never MuJoCo C for Playground
+    assert env.config.engine == "mjx"
     dr_keys = jax.random.split(jax.random.PRNGKey(1), N_WORLDS)
     wrapped = wrap_for_brax_training(
         env,

@@ -360,11 +360,13 @@ def test_kill_9_then_resume_continues_from_last_checkpoint(trained, tmp_path):
     assert summary["env_steps"] == 1200
     assert (out / "final_policy" / "params.npz").exists()
     # --engine auto on a machine without a GPU: the MuJoCo C engine, recorded in the run and
-    # in the policy (a later evaluation on MJX is a cross evaluation)
-    run_over = json.loads((out / "run.json").read_text())["config"]["env_overrides"]
+    # in the policy as provenance (engine), not in the policy's task (env_overrides)
+    run = json.loads((out / "run.json").read_text())
     policy = json.loads((out / "final_policy" / "policy.json").read_text())
+    assert not {"engine", "impl", "mujoco_threads"} & set(policy["env_overrides"])
+    assert run["engine"] == policy["engine"]
     if jax.default_backend() == "cpu":
-        assert run_over["engine"] == policy["env_overrides"]["engine"] == "mujoco"
+        assert run["config"]["env_overrides"]["engine"] == policy["engine"] == "mujoco"
 
 
 def test_corrupt_newest_checkpoint_falls_back_and_the_run_finishes(trained, tmp_path, capsys):

@@ -92,7 +92,9 @@ def summarise(ep: dict[str, np.ndarray]) -> dict:
 
 def run(name, overrides, episodes, seed, batch, parts_root, progress=True):
     """The scripted rollout of env ``name`` with ``overrides``: (env, per-episode arrays, s)."""
-    env = envs.load(name, config_overrides=overrides or None)
+    # MJX pinned: the engine of the committed results and of their slices' keys (the env
+    # default became auto, 2026-12-05)
+    env = envs.load(name, config_overrides={"engine": "mjx", **(overrides or {})})
     # slices are keyed to the env's whole config (not its name: a changed hard_config must
     # not reuse the old slices), the seed and the batch
     key = [name, env.config.to_dict(), seed, batch]

@@ -59,7 +59,7 @@ def main() -> None:
     args = ap.parse_args()
     rows = []
     for name in envs.ALL_ENVS:
-        env = envs.load(name)
+        env = envs.load(name, config_overrides={"engine": "mjx"})  # the engine recorded
         for policy in ("scripted", "random"):
             n = args.episodes if policy == "scripted" else args.random_episodes
             res = rollout(env, make_policy(env, policy), n, seed=0)

@@ -115,7 +115,8 @@ def main(argv: list[str] | None = None) -> int:
         overrides, speed, what = VARIANTS[variant]
         if args.representation:
             overrides = {**overrides, "representation": args.representation}
-        env = envs.load(name, config_overrides=overrides or None)
+        # MJX pinned: the engine of the committed results (the env default became auto)
+        env = envs.load(name, config_overrides={"engine": "mjx", **overrides})
         t0 = time.perf_counter()
         res = rollout(env, scripted_policy(env, speed), args.episodes, seed=args.seed)
         s = res.summary().as_dict()

@@ -174,7 +174,7 @@ def main(argv: list[str] | None = None) -> int:
     except UserInputError as e:
         print(f"policy_trace: error: {e}", file=sys.stderr)
         return 2
-    env = bundle.make_env()
+    env = bundle.make_env(bundle.trained_engine())  # the engine the policy was trained on
     t0 = time.perf_counter()
     per_step, ended = trace(bundle, env, args.episodes, args.seed, progress=not args.no_progress)
     c = env.config

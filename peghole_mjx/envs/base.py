@@ -27,7 +27,14 @@ from peghole_mjx.envs import iiwa_constants as names
 from peghole_mjx.envs import stuck
 from peghole_mjx.envs.config import apply_overrides, base_config, env_spec, sim_options
 from peghole_mjx.envs.engine_mujoco import MujocoEngine
-from peghole_mjx.envs.engines import ENGINES, FTReading, MjxEngine, Readout, SceneIds
+from peghole_mjx.envs.engines import (
+    ENGINES,
+    FTReading,
+    MjxEngine,
+    Readout,
+    SceneIds,
+    resolve_engine,
+)
 from peghole_mjx.envs.engines import contact_overflow as contact_overflow
 from peghole_mjx.errors import UserInputError
 from peghole_mjx.geometry.mjcf import TOOL_DOWN_MAT, build_scene
@@ -57,7 +64,7 @@ class PegHoleBase:
     """
 
     def __init__(self, config: config_dict.ConfigDict, config_overrides: dict | None = None):
-        config = apply_overrides(config, config_overrides)
+        config = resolve_engine(apply_overrides(config, config_overrides))
         self._config = config
         #: the registry name (``envs.load`` sets it: RectExtractHard is a RectExtract class)
         self.env_name = type(self).__name__

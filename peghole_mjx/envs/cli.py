@@ -70,9 +70,10 @@ def _env_arguments(q: argparse.ArgumentParser) -> None:
         choices=CLI_ENGINES,
         default=None,
         help="physics engine: mjx (MuJoCo MJX), mjx-warp (MuJoCo Warp: CUDA GPU; a CPU runs "
-        "it slowly), mujoco (MuJoCo C, "
-        "mujoco.batch threads), auto (mujoco without a GPU, else mjx). Default: auto for "
-        "scripted/random, the policy's own engine for a policy",
+        "it slowly), mujoco (MuJoCo C, mujoco.batch threads), auto (mujoco without a GPU; "
+        "on a CUDA GPU mjx-warp with warp-lang, else mjx). "
+        "Default auto (a policy file from before 2026-12-05: the engine it recorded); the "
+        "engine is not part of the task, so any engine runs a policy as trained",
     )
     q.add_argument(
         "--cross",
@@ -200,7 +201,7 @@ def cmd_contacts(args: argparse.Namespace) -> int:
     title = f"{args.env} ({scene_name(env.config)}), policy {args.policy}, seed {args.seed}"
     contacts_mod.plot_contacts(trace, args.out / "contacts.png", title)
     summary = {"env": args.env, "policy": args.policy, "seed": args.seed, **trace.summary()}
-    summary["engine"] = env.config.engine
+    summary["engine"] = engine_label(env.config)
     fileio.write_text(args.out / "summary.json", json.dumps(summary, indent=2) + "\n")
     print(dumps(summary))
     print(f"wrote {args.out}/contacts.csv, contacts.png, summary.json", file=sys.stderr)

@@ -48,9 +48,11 @@ def base_config(preset: str) -> config_dict.ConfigDict:
         # preset spec's fields to change, in mm, e.g. '{"peg_w_mm": 49.9, "hole_w_mm": 50.1}'
         # (geometry/specs.py RectSpec, DualSpec; checked by specs.validate). "": the preset's
         geometry="",
-        # the physics engine (envs/engines.py): "mjx" (MuJoCo MJX, CPU or GPU) or "mujoco"
-        # (MuJoCo C through mujoco.batch on a CPU thread pool, envs/engine_mujoco.py)
-        engine="mjx",
+        # the physics engine (envs/engines.py): "auto" (default_engine: MuJoCo C without a GPU,
+        # MJX-Warp on a CUDA GPU with warp-lang, else MJX-JAX; the built env's config holds the
+        # one chosen), "mjx" (MuJoCo MJX, CPU or GPU) or "mujoco" (MuJoCo C through
+        # mujoco.batch on a CPU thread pool, envs/engine_mujoco.py). Provenance, not the task
+        engine="auto",
         impl="jax",  # engine mjx: MJX's implementation, "jax" (CPU, GPU) or "warp" (CUDA, or CPU)
         mujoco_threads=0,  # engine mujoco: threads of its pool; 0 = every CPU of the process
         # collision representation of the parts (geometry/parts.py); None: the preset's default

@@ -38,7 +38,7 @@ import jax.numpy as jnp
 import mujoco
 import numpy as np
 
-from peghole_mjx._mjx import mjx, tree_path_to_attr_str, warp_types
+from peghole_mjx._mjx import default_engine, mjx, tree_path_to_attr_str, warp_types
 from peghole_mjx.control import ImpedanceController, ImpedanceParams, Target
 from peghole_mjx.errors import UserInputError
 
@@ -46,7 +46,8 @@ from peghole_mjx.errors import UserInputError
 #: ``engine=mjx`` with ``impl=warp``
 ENGINES = ("mjx", "mujoco")
 
-#: the ``--engine`` choices of the commands: ``auto`` is :func:`default_engine`
+#: the ``--engine`` choices of the commands: ``auto`` is :func:`default_engine` (in
+#: :mod:`peghole_mjx._mjx`, below the envs and the experiments, which share its rule)
 CLI_ENGINES = ("auto", "mjx", "mjx-warp", "mujoco")
 
 #: the named ``vmap`` axes of a batch of worlds: callers map ``env.reset`` over the worlds with
@@ -120,10 +121,29 @@ def select_worlds(mask: jax.Array, on_true, on_false):
     return rest.replace(data=new_data)
 
 
-def default_engine() -> str:
-    """The faster engine on this machine: ``mujoco`` (MuJoCo C) where JAX has no GPU, else
-    ``mjx`` (measured: benchmarks/results/perf/throughput_engines_cpu-2core.json)."""
-    return "mujoco" if jax.default_backend() == "cpu" else "mjx"
+#: the env config entries that choose the engine: provenance of a run, not part of the task (a
+#: policy runs on any engine), so a policy's ``env_overrides`` do not carry them
+ENGINE_KEYS = ("engine", "impl", "mujoco_threads")
+
+
+def task_overrides(overrides: dict) -> dict:
+    """``overrides`` without the engine entries (:data:`ENGINE_KEYS`, flat or ``env.``-prefixed):
+    what a policy's env is, whatever engine it ran on."""
+    return {k: v for k, v in overrides.items() if k.removeprefix("env.") not in ENGINE_KEYS}
+
+
+def resolve_engine(config):
+    """``config`` with ``engine`` ``auto`` made concrete (:func:`default_engine`; an ``impl``
+    of warp asks for MJX-Warp): a copy, the config itself when its engine is already concrete."""
+    if config.engine != "auto":
+        return config
+    config = config.copy_and_resolve_references()
+    if config.get("impl", "jax") == "warp":
+        config.engine = "mjx"
+        return config
+    for key, value in engine_overrides(default_engine()).items():
+        config[key] = value
+    return config
 
 
 def engine_overrides(choice: str) -> dict[str, str]:
@@ -141,6 +161,8 @@ def engine_label(config) -> str:
     """The ``--engine`` name of an env config's engine entries (``mjx`` with ``impl`` warp is
     ``mjx-warp``): what results record as their engine."""
     impl = config.get("impl", "jax") if hasattr(config, "get") else "jax"
+    if config["engine"] == "auto":
+        return default_engine() if impl != "warp" else "mjx-warp"
     return "mjx-warp" if config["engine"] == "mjx" and impl == "warp" else config["engine"]
 
 

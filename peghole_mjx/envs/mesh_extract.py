@@ -44,6 +44,9 @@ class MeshExtract(PegHoleEnv):
     ):
         config = apply_overrides(config or default_config(), config_overrides)
         spec = env_spec(config)
+        if config.engine == "auto" and not spec.mjx_ok:  # MuJoCo C takes any convex face
+            config = config.copy_and_resolve_references()
+            config.engine, config.impl = "mujoco", "jax"
         if config.engine == "mjx" and not spec.mjx_ok:
             raise UserInputError(
                 f"task {spec.folder}: a convex piece has a face of {spec.max_face_vertices} "

@@ -20,6 +20,12 @@ friction-scale draw at every step. The scene's contacts are explicit ``<pair>`` 
 ``geom_friction`` has no effect on them. The ``mujoco`` engine (MuJoCo C) does not read an
 ``mjx.Model``: Playground's hooks need ``engine=mjx``.
 
+:func:`load` builds an env for Playground with the package's one default, engine ``auto``
+(issue 51, 2026-12-05), with one difference: where ``auto`` stands for MuJoCo C (a machine
+without a GPU) it picks ``mjx`` (MJX-JAX) instead, because Playground's whole point is an
+``mjx.Model`` its hooks vary per world; on a CUDA GPU ``auto`` is MJX-Warp or MJX-JAX as for
+every env. An engine named in the overrides is kept.
+
 Needs the ``playground`` extra (``pip install -e ".[playground]"``).
 """
 
@@ -31,13 +37,32 @@ from typing import Any
 import jax
 import jax.numpy as jnp
 
+from peghole_mjx import envs
 from peghole_mjx._mjx import mjx
 from peghole_mjx._optional import optional_import
+from peghole_mjx.envs.engines import default_engine, engine_overrides
 
-__all__ = ["joint_damping_randomization", "wrap_for_brax_training"]
+__all__ = ["joint_damping_randomization", "load", "playground_engine", "wrap_for_brax_training"]
 
 #: Playground's hook: mjx.Model -> (model batched over worlds, its vmap in_axes)
 ModelRandomization = Callable[[mjx.Model], tuple[mjx.Model, mjx.Model]]
+
+
+def playground_engine() -> dict[str, str]:
+    """The env config entries of engine ``auto`` for Playground: :func:`default_engine`'s
+    engine, ``mjx`` (MJX-JAX) where that is ``mujoco`` (MuJoCo C has no ``mjx.Model``)."""
+    choice = default_engine()
+    return engine_overrides("mjx" if choice == "mujoco" else choice)
+
+
+def load(name: str = "RectExtract", config_overrides: dict | None = None) -> Any:
+    """Env ``name`` (:func:`peghole_mjx.envs.load`) for Playground: engine ``auto`` as
+    :func:`playground_engine` resolves it, unless ``config_overrides`` names an engine
+    other than ``auto``."""
+    over = dict(config_overrides or {})
+    if over.get("engine", "auto") == "auto":
+        over = {**over, **playground_engine()}
+    return envs.load(name, config_overrides=over)
 
 
 def wrap_for_brax_training(

@@ -12,8 +12,8 @@ from peghole_mjx.validation import arg
 
 COMMANDS = "peghole_mjx.experiments.commands"
 ENGINE_HELP = (
-    "mjx (default: MJX-JAX, all worlds in one batch, float32 unless --x64) or mujoco (MuJoCo C, "
-    "float64, one world at a time)"
+    "auto (default: mujoco where JAX has no GPU, else mjx; mjx with --x64), mjx (MJX-JAX, all "
+    "worlds in one batch, float32 unless --x64) or mujoco (MuJoCo C, float64, one world at a time)"
 )
 
 
@@ -89,7 +89,7 @@ def add_parser(subparsers) -> None:
         action="store_true",
         help="run in float64 (float32 does not resolve pulls slower than a few mm/s)",
     )
-    w.add_argument("--engine", default="mjx", help=ENGINE_HELP)
+    w.add_argument("--engine", default="auto", help=ENGINE_HELP)
     w.add_argument("--out", required=True, type=Path, help="output folder (resumable)")
     w.add_argument(
         "--force",
@@ -118,7 +118,7 @@ def add_parser(subparsers) -> None:
     k.add_argument(
         "--x64", action="store_true", help="run in float64 (jax_enable_x64) instead of float32"
     )
-    k.add_argument("--engine", default="mjx", help=ENGINE_HELP)
+    k.add_argument("--engine", default="auto", help=ENGINE_HELP)
     k.add_argument(
         "--append",
         action="store_true",

@@ -122,9 +122,10 @@ def run_sweep(args: argparse.Namespace) -> int:
 
 
 def _check_engine(args: argparse.Namespace) -> None:
-    """``--engine`` is one of the experiment's engines, and ``--x64`` goes with ``mjx`` only
-    (the ``mujoco`` engine always runs in float64); else one line."""
-    cx.check_engine(args.engine)
+    """``--engine`` is one of the experiment's engines (``auto`` made concrete in ``args``:
+    :func:`~peghole_mjx.experiments.compliance.auto_engine`), and ``--x64`` goes with ``mjx``
+    only (the ``mujoco`` engine always runs in float64); else one line."""
+    args.engine = cx.check_engine(args.engine, args.x64)
     if args.engine != "mjx" and args.x64:
         raise UserInputError(
             f"--x64 sets MJX's precision; the {args.engine} engine always runs in float64"

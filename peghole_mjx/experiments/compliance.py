@@ -54,6 +54,7 @@ from mujoco import mjx
 from scipy.signal import savgol_filter
 
 from peghole_mjx import progress as prog
+from peghole_mjx._mjx import default_engine
 from peghole_mjx.analysis import dual as an_dual
 from peghole_mjx.analysis import oracle
 from peghole_mjx.analysis import rect as an_rect
@@ -192,7 +193,10 @@ class ExperimentConfig:
     #: the law's damping ratio zeta (None: ``GAINS.damping_ratio``)
     damping_ratio: float | None = None
     #: the engine (:data:`ENGINES`): ``mjx`` (MJX-JAX, batched) or ``mujoco`` (MuJoCo C,
-    #: float64, one world at a time); recorded by :func:`config_dict` when not ``mjx``
+    #: float64, one world at a time), ``auto`` (:func:`auto_engine`, made concrete by
+    #: :class:`Extraction`); recorded by :func:`config_dict` when not ``mjx``. The commands
+    #: default to ``auto`` and pass the concrete engine; this field stays ``mjx``, the engine of
+    #: the records written before the engine was a field (their resume keys stay as they were)
     engine: str = "mjx"
     #: the rect and dual presets' L_C positions, step, contact time constant and collision
     #: representation (:class:`GeometrySetup`)
@@ -259,10 +263,25 @@ def world_table(cfg: ExperimentConfig, preset: str) -> dict[str, np.ndarray]:
     }
 
 
-def check_engine(engine: str) -> str:
-    """``engine`` if it is one of :data:`ENGINES`, else :class:`UserInputError` in one line."""
+#: the experiments' ``--engine`` choices: :data:`ENGINES` and ``auto`` (:func:`auto_engine`)
+ENGINE_CHOICES = ("auto", *ENGINES)
+
+
+def auto_engine(x64: bool = False) -> str:
+    """The engine ``auto`` stands for: the envs' rule (:func:`peghole_mjx._mjx.default_engine`,
+    issue 51, 2026-12-05), ``mujoco`` where JAX has no GPU, else ``mjx`` (the experiments have
+    no MuJoCo Warp path). ``x64`` (MJX's float64 asked for): ``mjx``, so that the commands of
+    the float64 results recorded before the default became ``auto`` still reproduce them."""
+    return "mjx" if x64 or default_engine() != "mujoco" else "mujoco"
+
+
+def check_engine(engine: str, x64: bool = False) -> str:
+    """``engine`` if it is one of :data:`ENGINES` (``auto``: :func:`auto_engine`), else
+    :class:`UserInputError` in one line."""
+    if engine == "auto":
+        return auto_engine(x64)
     if engine not in ENGINES:
-        raise UserInputError(f"engine must be {' or '.join(ENGINES)}, not {engine!r}")
+        raise UserInputError(f"engine must be auto, {' or '.join(ENGINES)}, not {engine!r}")
     return engine
 
 

@@ -44,6 +44,7 @@ from brax.training.agents.sac import networks as sac_networks
 
 from peghole_mjx import envs, fileio
 from peghole_mjx.checkpoint_folders import MANIFEST, checkpoint_name, newest_policy_checkpoint
+from peghole_mjx.envs.engines import ENGINE_KEYS, engine_overrides, task_overrides
 from peghole_mjx.errors import CorruptFileError, UserInputError
 from peghole_mjx.treenames import differences, named_leaves
 from peghole_mjx.validation import MAX_HIDDEN_LAYERS, RANGES, loads
@@ -77,6 +78,15 @@ class PolicyBundle:
     @property
     def env_overrides(self) -> dict[str, Any]:
         return dict(self.meta.get("env_overrides", {}))
+
+    def trained_engine(self) -> dict[str, Any]:
+        """The engine entries of the env the policy was trained on (provenance, not the task:
+        :func:`make_env` runs on ``auto`` unless given them): ``engine`` of a policy from
+        2026-12-05 on, else its ``env_overrides`` entries, else ``mjx`` (the env default then)."""
+        if "engine" in self.meta:
+            return engine_overrides(self.meta["engine"])
+        over = self.env_overrides
+        return {k: over[k] for k in ENGINE_KEYS if k in over} or {"engine": "mjx"}
 
     def make_env(self, extra_overrides: dict | None = None):
         """The env the policy was trained on; ``extra_overrides`` change it (a cross
@@ -367,8 +377,10 @@ def check_as_trained(meta: dict[str, Any], where: str) -> None:
             "a published policy runs as trained: republish it (train/publish_policy.py), or "
             "evaluate another env with peghole evaluate --cross --set env.KEY=VALUE"
         )
-    trained = (meta.get("train_config") or {}).get("env_overrides") or {}
-    have = meta.get("env_overrides", {})
+    # the engine entries are provenance, not the task (ENGINE_KEYS): a policy from before
+    # 2026-12-05 carries them in env_overrides, a newer one only in train_config
+    trained = task_overrides((meta.get("train_config") or {}).get("env_overrides") or {})
+    have = task_overrides(meta.get("env_overrides", {}))
     differ = sorted(k for k, v in trained.items() if k not in have or have[k] != v)
     if differ:
         raise UserInputError(

@@ -49,8 +49,8 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     """Add ``train``, ``evaluate`` and ``compare`` to ``sub``."""
     engine_help = (
         "physics engine: mjx (MuJoCo MJX), mjx-warp (MuJoCo Warp: CUDA GPU; a CPU runs one "
-        "world slowly), mujoco (MuJoCo C on "
-        "mujoco.batch threads), auto (mujoco where JAX has no GPU, else mjx)"
+        "world slowly), mujoco (MuJoCo C on mujoco.batch threads), auto (mujoco where JAX "
+        "has no GPU; on a CUDA GPU mjx-warp with warp-lang, else mjx)"
     )
     t = sub.add_parser(
         "train",
@@ -77,7 +77,8 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
         "--engine",
         choices=CLI_ENGINES,
         default=None,
-        help=engine_help + "; recorded in run.json and the policy (env_overrides.engine). "
+        help=engine_help + "; recorded in run.json and the policy (engine: provenance, not "
+        "the task). "
         "Default auto; with --resume only the run's own engine",
     )
     t.add_argument(
@@ -177,8 +178,8 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
         "--engine",
         choices=CLI_ENGINES,
         default=None,
-        help=engine_help + ". Default: the engine the policy was trained on; another is a "
-        "cross evaluation (--cross)",
+        help=engine_help + ". Default auto (a policy file from before 2026-12-05: the engine "
+        "it recorded); any engine evaluates the policy as trained (the engine is not the task)",
     )
     e.add_argument(
         "--policy-only",

@@ -25,6 +25,7 @@ from peghole_mjx import fileio
 from peghole_mjx import progress as prog
 from peghole_mjx.envs import get_default_config
 from peghole_mjx.envs.config import apply_overrides
+from peghole_mjx.envs.engines import ENGINE_KEYS, engine_label
 from peghole_mjx.envs.metrics import EPISODE_RECORD, STUCK_METRICS, stuck_summary
 from peghole_mjx.envs.rollout import SCRIPTED_SPEED_M_S, rollout, scripted_policy
 from peghole_mjx.errors import CorruptFileError, UserInputError
@@ -246,10 +247,12 @@ def _flat(tree: dict, prefix: str = "") -> dict[str, Any]:
 def config_differences(bundle: PolicyBundle, config) -> dict[str, list]:
     """``{dotted key: [trained value, requested value]}`` for every entry of the env config
     ``config`` that differs from the policy's training env config (its ``env_overrides`` on
-    the env's defaults)."""
+    the env's defaults). The engine entries (:data:`ENGINE_KEYS`) are provenance, not the task:
+    a policy on another engine is not a difference (issue 51, 2026-12-05)."""
     trained = requested_config(bundle, None)
     a, b = _flat(json.loads(trained.to_json())), _flat(json.loads(config.to_json()))
-    return {k: [a.get(k), b.get(k)] for k in sorted(a.keys() | b.keys()) if a.get(k) != b.get(k)}
+    keys = sorted((a.keys() | b.keys()) - set(ENGINE_KEYS))
+    return {k: [a.get(k), b.get(k)] for k in keys if a.get(k) != b.get(k)}
 
 
 def requested_config(bundle: PolicyBundle, env_overrides: dict | None = None):
@@ -315,7 +318,7 @@ def evaluate(
     else:  # checked before the env is built
         config = requested_config(bundle, env_overrides)
         diff = check_requested_env(bundle, config, cross)
-        with prog.phase(f"building the {bundle.env_name} env ({config.engine})", progress):
+        with prog.phase(f"building the {bundle.env_name} env ({engine_label(config)})", progress):
             env = bundle.make_env(env_overrides)
     parts = _parts_dirs(parts_dir, bundle, env, seed, batch or episodes)
     for folder in parts:  # before any simulation: an unusable slice is set aside, run again
@@ -362,7 +365,7 @@ def evaluate(
         "seed": seed,
         "env": bundle.env_name,
         "preset": env.config.preset,
-        "engine": env.config.engine,  # the physics engine (docs/research/performance.md)
+        "engine": engine_label(env.config),  # the physics engine (docs/research/performance.md)
         "geometry": env.config.geometry or None,  # spec changes from the preset's, if any
         **({"task": env.config.task} if "task" in env.config else {}),  # MeshExtract's folder
         "compliance_strategy": bool(env.config.compliance_strategy),

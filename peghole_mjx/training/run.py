@@ -58,6 +58,7 @@ from tqdm import tqdm
 
 from peghole_mjx import envs, fileio, memory
 from peghole_mjx.envs import rollout as rollouts
+from peghole_mjx.envs.engines import engine_label, task_overrides
 from peghole_mjx.envs.metrics import EVAL_STATS, TOTAL_KEYS, TRAIN_STATS, summarize_totals
 from peghole_mjx.errors import UserInputError
 from peghole_mjx.lock import RunLock
@@ -384,13 +385,14 @@ class TrainingRun(Run):
     def _record(self) -> dict[str, Any]:
         return {
             "config": self.cfg.as_dict(),
+            "engine": engine_label(self.env.config),  # the engine this run steps with
             "network": self.trainer.network,
             **provenance(),
             "commit": commit(),
         }
 
     def _policy_meta(self, step: int) -> dict[str, Any]:
-        return policy_meta(self.cfg, self.trainer.network, step)
+        return policy_meta(self.cfg, self.trainer.network, step, engine_label(self.env.config))
 
     # ------------------------------------------------------------------ evaluation
     def evaluate(self, carry, episodes: int, seed: int) -> dict[str, float]:
@@ -704,11 +706,17 @@ def starting_over(out: Path, ckpt_dir: Path) -> Path | None:
 
 
 # ---------------------------------------------------------------------- helpers
-def policy_meta(cfg: TrainConfig, network: dict[str, Any], step: int) -> dict[str, Any]:
-    """``policy.json`` of a policy trained with ``cfg`` for ``step`` env steps."""
+def policy_meta(
+    cfg: TrainConfig, network: dict[str, Any], step: int, engine: str | None = None
+) -> dict[str, Any]:
+    """``policy.json`` of a policy trained with ``cfg`` for ``step`` env steps on ``engine``
+    (its ``engine_label``). The engine is provenance, not the task (issue 51, 2026-12-05): the
+    ``env_overrides`` leave out the engine entries (:data:`~peghole_mjx.envs.engines.ENGINE_KEYS`)
+    and ``engine`` records the one trained on; the policy runs on any engine."""
     return {
         "env": cfg.env,
-        "env_overrides": cfg.env_overrides,
+        "env_overrides": task_overrides(cfg.env_overrides),
+        **({"engine": engine} if engine else {}),
         "network": network,
         "train_config": cfg.as_dict(),
         "env_steps": step,

@@ -37,6 +37,7 @@ import numpy as np
 
 from peghole_mjx import envs, fileio, policies
 from peghole_mjx.envs import rollout as rollouts
+from peghole_mjx.envs.engines import engine_label
 from peghole_mjx.envs.metrics import EVAL_STATS, TOTAL_KEYS, TRAIN_STATS, summarize_totals
 from peghole_mjx.errors import CorruptFileError, UserInputError
 from peghole_mjx.provenance import provenance
@@ -116,13 +117,14 @@ class SeedsRun(Run):
     def _save_policy(self, path: Path, carry, k: int, step: int, atomic: bool = True) -> None:
         params = _seed_slice(self.train.policy_params(carry), k)
         cfg = dataclasses.replace(self.cfg, seed=self.cfg.seed + k)
-        meta = policy_meta(cfg, self.train.network, step)
+        meta = policy_meta(cfg, self.train.network, step, engine_label(self.env.config))
         policies.save_policy(path, params, meta, atomic=atomic)
 
     def _record(self) -> dict[str, Any]:
         return {
             "config": self.cfg.as_dict(),
             "seeds": self.seeds,
+            "engine": engine_label(self.env.config),  # the engine this run steps with
             "network": self.train.network,
             **provenance(),
         }
