@@ -13,7 +13,7 @@ Two randomisations then compose. The env's own per-episode draw
 (:func:`peghole_mjx.envs.randomization.randomization_fn`: hole pose, commanded error,
 friction scale, k_xy) runs inside ``reset`` for every world; Playground's hook varies fields of
 the compiled model per world, and the MJX engine steps with the env's current ``_mjx_model``
-(:class:`peghole_mjx.envs.engines.MjxEngine` reads it at every trace), so every field a hook
+(:class:`peghole_mjx.sim.engines.MjxEngine` reads it at every trace), so every field a hook
 varies (``dof_damping``, ``body_mass``, ``pair_friction``, ...) reaches the physics
 (``tests/test_model_swap.py``). A hook's ``pair_friction`` is multiplied by the env's own
 friction-scale draw at every step. The scene's contacts are explicit ``<pair>`` elements: a hook on
@@ -31,8 +31,8 @@ from typing import Any
 import jax
 import jax.numpy as jnp
 
-from peghole_mjx._mjx import mjx
-from peghole_mjx._optional import optional_import
+from peghole_mjx.core._mjx import mjx
+from peghole_mjx.core._optional import optional_import
 
 __all__ = ["joint_damping_randomization", "wrap_for_brax_training"]
 

@@ -6,9 +6,9 @@ through here, early, keeps stdout clean; any other import output still goes to s
 
 ``support`` is MJX's private ``mujoco.mjx._src.support`` (point Jacobian, full inertia matrix),
 used by :mod:`peghole_mjx.control.kinematics`; a MuJoCo upgrade that moves it breaks here
-only; ``solver`` is MJX's private ``mujoco.mjx._src.solver``, which :mod:`peghole_mjx.mjx_fixes`
+only; ``solver`` is MJX's private ``mujoco.mjx._src.solver``, which :mod:`peghole_mjx.sim.mjx_fixes`
 patches; ``warp_types`` and ``tree_path_to_attr_str`` give MJX's own table of MuJoCo Warp's
-fields shared by a batch's worlds (read by :func:`peghole_mjx.envs.engines.select_worlds`).
+fields shared by a batch's worlds (read by :func:`peghole_mjx.sim.engines.select_worlds`).
 """
 
 from __future__ import annotations

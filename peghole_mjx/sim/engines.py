@@ -20,7 +20,7 @@ Engines, chosen by the env config entry ``engine``:
 
 * ``mjx`` (:class:`MjxEngine`, this module): MuJoCo MJX, ``impl`` ``jax`` (CPU, GPU) or
   ``warp`` (MuJoCo Warp: CUDA GPU, or slowly a CPU); the state is an ``mjx.Data``;
-* ``mujoco`` (:class:`peghole_mjx.envs.engine_mujoco.MujocoEngine`): MuJoCo C through
+* ``mujoco`` (:class:`peghole_mjx.sim.engine_mujoco.MujocoEngine`): MuJoCo C through
   ``mujoco.batch`` on a thread pool, entered from the jitted env through ``jax.pure_callback``;
   the state is MuJoCo's integration state row, float64 carried bit for bit.
 
@@ -38,9 +38,9 @@ import jax.numpy as jnp
 import mujoco
 import numpy as np
 
-from peghole_mjx._mjx import mjx, tree_path_to_attr_str, warp_types
 from peghole_mjx.control import ImpedanceController, ImpedanceParams, Target
-from peghole_mjx.errors import UserInputError
+from peghole_mjx.core._mjx import mjx, tree_path_to_attr_str, warp_types
+from peghole_mjx.core.errors import UserInputError
 
 #: the physics engines an env config may name (``engine``); ``mjx-warp`` on the command line is
 #: ``engine=mjx`` with ``impl=warp``
