@@ -12,9 +12,9 @@ docs tables that the scripts register. Run each script from the repository root 
 e.g. ``python -m benchmarks.perf.throughput --quick``.
 """
 
-from peghole_mjx.runtime import configure
+from peghole_mjx.core.runtime import configure
 
 # the scripts are commands: the process-wide settings of ``peghole`` (the XLA CPU flag without
 # which MJX's kinematics run 20-50x slower on a CPU, headless rendering, the compilation cache;
-# peghole_mjx/runtime.py), applied before any of them starts JAX
+# peghole_mjx/core/runtime.py), applied before any of them starts JAX
 configure()

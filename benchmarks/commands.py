@@ -1,6 +1,6 @@
 """README's command table, generated from the ``peghole`` parser itself.
 
-One row per command (a leaf of the sub-command tree that :func:`peghole_mjx.cli.build_parser`
+One row per command (a leaf of the sub-command tree that :func:`peghole_mjx.cli.main.build_parser`
 builds): its usage, shortened to the arguments a call needs (the required options, then the
 positionals), and the help line its group module gave it. ``--help`` lists the optional
 arguments, left out of the table to keep README.md within its size (tests/test_docs.py).
@@ -14,7 +14,7 @@ import argparse
 from collections.abc import Iterator
 
 from benchmarks.common import table
-from peghole_mjx.cli import build_parser
+from peghole_mjx.cli.main import build_parser
 
 #: a list of choices longer than this (characters) shows as the argument's name
 MAX_CHOICES = 24

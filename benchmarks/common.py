@@ -29,10 +29,10 @@ from pathlib import Path
 
 from tqdm import tqdm
 
-from peghole_mjx import fileio
-from peghole_mjx.errors import UserInputError
-from peghole_mjx.provenance import cpu_device as cpu_device  # re-exported
-from peghole_mjx.provenance import utc_now as utc_now  # re-exported
+from peghole_mjx.core.errors import UserInputError
+from peghole_mjx.files import fileio
+from peghole_mjx.files.provenance import cpu_device as cpu_device  # re-exported
+from peghole_mjx.files.provenance import utc_now as utc_now  # re-exported
 
 #: the repository root (links in the docs tables are written relative to it)
 ROOT = Path(__file__).resolve().parents[1]
@@ -255,7 +255,7 @@ OUT_BYTES = 16 << 20
 def check_out(path: Path | str, need_bytes: int = OUT_BYTES, what: str = "--out") -> Path:
     """Before a benchmark's work: ``path`` can be written as a file (its folder created,
     a real write probed) and its disk has ``need_bytes`` free; else a one-line
-    :class:`~peghole_mjx.errors.UserInputError`."""
+    :class:`~peghole_mjx.core.errors.UserInputError`."""
     path = fileio.check_out_file(path, what)
     fileio.check_room(path, need_bytes, what)
     return path

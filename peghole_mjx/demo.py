@@ -1,7 +1,7 @@
 """``peghole demo``: the whole pipeline once, with a short report.
 
 What it does, step by step, and how a rerun reuses its complete stages:
-:data:`peghole_mjx.demo_cli.DESCRIPTION` (``peghole demo --help``); the parser and the names
+:data:`peghole_mjx.cli.demo.DESCRIPTION` (``peghole demo --help``); the parser and the names
 the demo writes are there too.
 """
 
@@ -22,24 +22,24 @@ from typing import Any
 import jax
 import numpy as np
 
-from peghole_mjx import fileio
-from peghole_mjx import progress as prog
+from peghole_mjx.cli.demo import DEMO_OUTPUTS, DEMO_STATE, REPORT_TITLE, STAGE_OUTPUTS
+from peghole_mjx.cli.demo import add_parser as add_parser  # the group's parser (cli.GROUPS)
 from peghole_mjx.control.limits import LIMITS
-from peghole_mjx.demo_cli import DEMO_OUTPUTS, DEMO_STATE, REPORT_TITLE, STAGE_OUTPUTS
-from peghole_mjx.demo_cli import add_parser as add_parser  # the group's parser (cli.GROUPS)
-from peghole_mjx.envs.engines import engine_overrides
-from peghole_mjx.errors import CorruptFileError, UserInputError
+from peghole_mjx.core import progress as prog
+from peghole_mjx.core.errors import CorruptFileError, UserInputError
+from peghole_mjx.core.validation import dumps, load_json_object
 from peghole_mjx.experiments import compliance as cx
 from peghole_mjx.experiments import outputs
 from peghole_mjx.experiments import report as exp_report
+from peghole_mjx.files import fileio
+from peghole_mjx.files.provenance import provenance
 from peghole_mjx.geometry.mjcf import write_scenes
 from peghole_mjx.geometry.specs import MM, PRESETS, get_preset
 from peghole_mjx.policies import PRETRAINED
-from peghole_mjx.provenance import provenance
+from peghole_mjx.sim.engines import engine_overrides
 from peghole_mjx.training import evaluate as evaluate_mod
 from peghole_mjx.training import run as run_mod
 from peghole_mjx.training.config import load_train_config
-from peghole_mjx.validation import dumps, load_json_object
 
 
 def _step(name: str) -> float:

@@ -38,7 +38,7 @@ out of range: the state does not change, and the robot keeps its last command.
 
 This module imports neither JAX nor MuJoCo (tested: tests/test_export.py runs it with both
 blocked), so it runs on a robot PC with ``pip install numpy onnxruntime`` and this one file
-plus :mod:`peghole_mjx.errors` (the package's ``__init__`` imports neither). The mapping onto
+plus :mod:`peghole_mjx.core.errors` (the package's ``__init__`` imports neither). The mapping onto
 a KUKA iiwa's Cartesian impedance mode: docs/guide/deploy.md.
 """
 
@@ -53,9 +53,9 @@ from typing import Any
 
 import numpy as np
 
-from peghole_mjx._optional import optional_import
-from peghole_mjx.errors import CorruptFileError, UserInputError
-from peghole_mjx.rotations import rot_from_rotvec, rotvec_from_mat
+from peghole_mjx.core._optional import optional_import
+from peghole_mjx.core.errors import CorruptFileError, UserInputError
+from peghole_mjx.core.rotations import rot_from_rotvec, rotvec_from_mat
 
 #: the ``action.json`` format this module reads (and :mod:`peghole_mjx.policies.export` writes)
 EXPORT_FORMAT_VERSION = 1
@@ -82,7 +82,7 @@ SOURCES = frozenset(
 )
 
 
-#: the robot's ranges (KUKA LBR iiwa Cartesian impedance mode, as ``peghole_mjx.validation``'s
+#: the robot's ranges (KUKA LBR iiwa Cartesian impedance mode, as ``peghole_mjx.core.validation``'s
 #: ``IIWA_K_TRANS``, ``IIWA_K_ROT`` and ``stiffness.damping_ratio``): inclusive (lo, hi)
 ROBOT_RANGES: dict[str, tuple[float, float]] = {
     "k_xy_N_m": (0.0, 5000.0),

@@ -1,7 +1,7 @@
 """Gymnasium adapters of the extraction envs: NumPy in, NumPy out.
 
 The physics engine is the env config's default, ``auto`` (MuJoCo C without a GPU; on a CUDA GPU
-MJX-Warp with warp-lang, else MJX-JAX: :func:`peghole_mjx.envs.engines.default_engine`);
+MJX-Warp with warp-lang, else MJX-JAX: :func:`peghole_mjx.sim.engines.default_engine`);
 ``config_overrides={"engine": ...}`` names another.
 
 * :class:`PegHoleVectorEnv`: a ``gymnasium.vector.VectorEnv`` over N worlds of one env
@@ -22,14 +22,14 @@ the native env's, eq (4.4) unchanged: the time-limit step's reward includes the 
 ``r_failure``, since the thesis counts a time-out as a failed extraction.
 
 Worlds are sized before anything is allocated: ``num_envs`` worlds whose states do not fit
-the available memory are refused in one line (:func:`peghole_mjx.memory.check_worlds`).
+the available memory are refused in one line (:func:`peghole_mjx.core.memory.check_worlds`).
 
 Actions are checked before they reach the env: real numbers (an integer or float dtype;
 complex, boolean, text or object arrays are refused, not cast) of the action space's shape, or
-:class:`~peghole_mjx.errors.UserInputError`. Values outside [-1, 1] are clipped by the env;
+:class:`~peghole_mjx.core.errors.UserInputError`. Values outside [-1, 1] are clipped by the env;
 a NaN action ends its episode like a non-finite world (``info["nan"]``).
 
-After an episode ends (single env): ``step`` raises :class:`~peghole_mjx.errors.UserInputError`
+After an episode ends (single env): ``step`` raises :class:`~peghole_mjx.core.errors.UserInputError`
 until ``reset`` is called; the ended world is never simulated further, and its terminal
 reward is paid once.
 
@@ -54,11 +54,12 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from peghole_mjx import envs, memory
-from peghole_mjx._optional import optional_import
-from peghole_mjx.envs.engines import batch_reset, select_worlds
-from peghole_mjx.errors import UserInputError
-from peghole_mjx.validation import check
+from peghole_mjx import envs
+from peghole_mjx.core import memory
+from peghole_mjx.core._optional import optional_import
+from peghole_mjx.core.errors import UserInputError
+from peghole_mjx.core.validation import check
+from peghole_mjx.sim.engines import batch_reset, select_worlds
 
 gymnasium = optional_import("gymnasium", "the Gymnasium adapter (peghole_mjx.gym)")
 from gymnasium import spaces  # noqa: E402

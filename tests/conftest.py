@@ -26,8 +26,8 @@ import gc
 import jax
 import pytest
 
-import peghole_mjx._mjx  # noqa: F401
-from peghole_mjx import runtime
+import peghole_mjx.core._mjx  # noqa: F401
+from peghole_mjx.core import runtime
 
 # the commands' process-wide settings (XLA's CPU flag, headless GL; the cache folder above is
 # kept): importing the package sets nothing. Importing JAX starts no backend, so XLA_FLAGS set

@@ -10,8 +10,8 @@ import numpy as np
 import pytest
 
 from peghole_mjx.analysis import claims, figures, rect
-from peghole_mjx.cli import main
-from peghole_mjx.validation import loads as strict_json  # no bare NaN
+from peghole_mjx.cli.main import main
+from peghole_mjx.core.validation import loads as strict_json  # no bare NaN
 
 
 @pytest.fixture(scope="module")

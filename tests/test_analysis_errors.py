@@ -6,8 +6,8 @@ import numpy as np
 import pytest
 
 from peghole_mjx.analysis import common, dual, rect
-from peghole_mjx.cli import main
-from peghole_mjx.errors import UserInputError
+from peghole_mjx.cli.main import main
+from peghole_mjx.core.errors import UserInputError
 from peghole_mjx.geometry.specs import DualSpec, InfeasibleGeometryError, RectSpec
 
 

@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import ast
 import os
+import re
 import subprocess
 import sys
 import textwrap
@@ -21,7 +22,7 @@ PACKAGE = ROOT / "peghole_mjx"
 
 #: modules that may be imported inside a function: the optional extras of pyproject.toml (cad,
 #: gym, playground, bench, export, warp; a function-local import keeps the package usable
-#: without them, and ``peghole_mjx._optional`` names the extra to install), and tensorboardX,
+#: without them, and ``peghole_mjx.core._optional`` names the extra to install), and tensorboardX,
 #: a dependency that imports torch and boto3 (3.7 s on the 2-core CPU, 2026-12-02) and whose
 #: numbers metrics.csv holds anyway
 OPTIONAL_EXTRAS = frozenset(
@@ -46,9 +47,11 @@ OPTIONAL_EXTRAS = frozenset(
 )
 #: the modules that import by name (``importlib.import_module``), and why
 DYNAMIC_IMPORTS = {
-    "peghole_mjx/cli.py": "the command groups of GROUPS, each when the parser is built",
-    "peghole_mjx/lazy.py": "a command's module, when the command runs (peghole --help stays fast)",
-    "peghole_mjx/_optional.py": "an optional extra, with the pip command that installs it",
+    "peghole_mjx/cli/main.py": "the command groups of GROUPS, each when the parser is built",
+    "peghole_mjx/core/lazy.py": (
+        "a command's module, when the command runs (peghole --help stays fast)"
+    ),
+    "peghole_mjx/core/_optional.py": "an optional extra, with the pip command that installs it",
 }
 
 
@@ -164,7 +167,7 @@ def test_the_in_function_import_check_sees_methods_nested_functions_and_import_m
                     import numpy as np
 
                     def inner():
-                        from peghole_mjx import fileio
+                        from peghole_mjx.files import fileio
                         import trimesh
 
                     return importlib.import_module("peghole_mjx.envs")
@@ -174,6 +177,31 @@ def test_the_in_function_import_check_sees_methods_nested_functions_and_import_m
     found = in_function_imports(sample, "peghole_mjx/sample.py")
     assert [line.split(": ", 1)[1] for line in found] == [
         "import numpy as np",
-        "from peghole_mjx import fileio",
+        "from peghole_mjx.files import fileio",
         "importlib.import_module('peghole_mjx.envs')",
     ]
+
+
+def test_the_package_root_holds_the_layers_folders_and_three_entry_modules():
+    """The tree shows the layers: every module lives in a layer's folder except the demo, the
+    Gymnasium adapter and the robot-side runner, and every folder is a layer of the contract."""
+    modules = sorted(p.name for p in PACKAGE.glob("*.py"))
+    assert modules == ["__init__.py", "demo.py", "deploy.py", "gym.py"]
+    folders = {p.name for p in PACKAGE.iterdir() if (p / "__init__.py").is_file()}
+    contract = (ROOT / ".importlinter").read_text()
+    layers = contract.split("[importlinter:contract:peghole-layers]")[1].split("ignore_imports")[0]
+    named = set(re.findall(r"peghole_mjx\.(\w+)", layers))
+    assert folders == named - {"demo", "deploy", "gym"}
+    assert folders == {
+        "cli",
+        "training",
+        "policies",
+        "envs",
+        "experiments",
+        "sim",
+        "control",
+        "analysis",
+        "geometry",
+        "files",
+        "core",
+    }

@@ -30,9 +30,9 @@ from benchmarks.perf import (
 )
 from benchmarks.studies import capsule_fidelity
 from peghole_mjx import envs
+from peghole_mjx.core.errors import UserInputError
 from peghole_mjx.envs.reward import REWARD_WEIGHTS
 from peghole_mjx.envs.rollout import scripted_policy
-from peghole_mjx.errors import UserInputError
 from peghole_mjx.geometry.mjcf import CONTACT_CAPS
 from peghole_mjx.geometry.parts import DUAL_DEFAULT_REPRESENTATION, RECT_DEFAULT_REPRESENTATION
 

@@ -17,10 +17,10 @@ manifold3d = pytest.importorskip("manifold3d")
 pytest.importorskip("coacd")
 
 from benchmarks.studies.coacd_verdict import chamfered_pair  # noqa: E402
-from peghole_mjx import progress as prog  # noqa: E402
-from peghole_mjx.cli import main  # noqa: E402
+from peghole_mjx.cli.main import main  # noqa: E402
+from peghole_mjx.core import progress as prog  # noqa: E402
+from peghole_mjx.core.errors import UserInputError  # noqa: E402
 from peghole_mjx.envs import task_cli, task_make  # noqa: E402
-from peghole_mjx.errors import UserInputError  # noqa: E402
 from peghole_mjx.geometry import coacd_budget as cb  # noqa: E402
 from peghole_mjx.geometry import decompose  # noqa: E402
 from peghole_mjx.geometry.decompose import CoacdParams  # noqa: E402
@@ -224,7 +224,7 @@ def test_task_make_counts_the_budget_from_the_commands_start(tmp_path, monkeypat
 
 def test_the_process_age_counts_from_the_process_start():
     code = (
-        "import time; time.sleep(1.5); from peghole_mjx.progress import process_age_s; "
+        "import time; time.sleep(1.5); from peghole_mjx.core.progress import process_age_s; "
         "print(process_age_s())"
     )
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)

@@ -2,7 +2,7 @@
 in memory, it equals the table between README.md's ``<!-- table:commands -->`` markers, so a
 command added, renamed or re-described in the code cannot leave the README behind.
 
-Cheap: the parser's group modules load their commands lazily (peghole_mjx/lazy.py); no JAX
+Cheap: the parser's group modules load their commands lazily (peghole_mjx/core/lazy.py); no JAX
 graph is built or compiled (the import of the package, JAX included, is the cost).
 """
 

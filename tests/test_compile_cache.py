@@ -1,4 +1,4 @@
-"""The persistent XLA compilation cache that ``peghole_mjx.runtime.configure()`` turns on (the
+"""The persistent XLA compilation cache that ``peghole_mjx.core.runtime.configure()`` turns on (the
 ``peghole`` commands call it; importing the package changes nothing: tests/test_runtime.py):
 where it goes, how to move or disable it, and that JAX's own variable wins, whether JAX or the
 package was imported first."""
@@ -12,7 +12,7 @@ import sys
 import pytest
 
 PROBE = (
-    "import {first}; import peghole_mjx.runtime, jax; peghole_mjx.runtime.configure(); "
+    "import {first}; import peghole_mjx.core.runtime, jax; peghole_mjx.core.runtime.configure(); "
     "print(jax.config.jax_compilation_cache_dir)"
 )
 

@@ -14,7 +14,7 @@ import numpy as np
 import pytest
 
 from peghole_mjx import envs
-from peghole_mjx.cli import main
+from peghole_mjx.cli.main import main
 from peghole_mjx.envs.contacts import (
     COLUMNS,
     TWO_POINT_DZ_MM,

@@ -18,7 +18,6 @@ import mujoco
 import numpy as np
 import pytest
 
-from peghole_mjx._mjx import mjx
 from peghole_mjx.control import (
     LIMITS,
     ImpedanceController,
@@ -28,6 +27,7 @@ from peghole_mjx.control import (
     rate_limit,
     rotvec_from_mat,
 )
+from peghole_mjx.core._mjx import mjx
 from peghole_mjx.geometry.mjcf import build_scene
 from peghole_mjx.geometry.specs import PRESETS
 
@@ -349,7 +349,7 @@ def test_a_tool_offset_along_the_axis_is_an_L_C_change_in_the_law(twin_rig):
 
 def test_one_rotation_helper_per_array_library():
     """``rotvec_from_mat`` / ``rot_from_rotvec`` are defined once in JAX (control/kinematics.py)
-    and once in NumPy (rotations.py), and the robot-side runner imports the NumPy
+    and once in NumPy (core/rotations.py), and the robot-side runner imports the NumPy
     module without loading JAX or MuJoCo."""
     pkg = Path(__file__).resolve().parents[1] / "peghole_mjx"
     for name in ("rotvec_from_mat", "rot_from_rotvec"):
@@ -358,7 +358,7 @@ def test_one_rotation_helper_per_array_library():
             for p in pkg.rglob("*.py")
             if re.search(rf"^def {name}\(", p.read_text(), re.M)
         )
-        assert defs == ["control/kinematics.py", "rotations.py"], (name, defs)
+        assert defs == ["control/kinematics.py", "core/rotations.py"], (name, defs)
     code = "import sys, peghole_mjx.deploy; print('jax' in sys.modules, 'mujoco' in sys.modules)"
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
     assert out.stdout.split() == ["False", "False"], out

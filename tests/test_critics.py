@@ -10,7 +10,7 @@ import optax
 import pytest
 
 from peghole_mjx import envs
-from peghole_mjx.errors import UserInputError
+from peghole_mjx.core.errors import UserInputError
 from peghole_mjx.training.config import load_train_config
 from peghole_mjx.training.critics import CRITICS, SIMBA_EXPANSION, make_q_network
 from peghole_mjx.training.sac import SACTrainer

@@ -7,8 +7,9 @@ import numpy as np
 import pytest
 import trimesh
 
-from peghole_mjx.cli import main
-from peghole_mjx.errors import UserInputError
+from peghole_mjx.cli.main import main
+from peghole_mjx.core.errors import UserInputError
+from peghole_mjx.core.validation import loads as strict_json  # no bare NaN
 from peghole_mjx.geometry.decompose import (
     CoacdParams,
     cad_meshes,
@@ -18,7 +19,6 @@ from peghole_mjx.geometry.decompose import (
     run_coacd,
 )
 from peghole_mjx.geometry.specs import PRESETS
-from peghole_mjx.validation import loads as strict_json  # no bare NaN
 
 
 @pytest.fixture(scope="module")
@@ -95,7 +95,7 @@ def test_missing_and_non_manifold_meshes_are_rejected(tmp_path):
 
 def _cli(*args: str) -> subprocess.CompletedProcess:
     return subprocess.run(
-        [sys.executable, "-m", "peghole_mjx.cli", *args],
+        [sys.executable, "-m", "peghole_mjx.cli.main", *args],
         capture_output=True,
         text=True,
         timeout=300,

@@ -29,7 +29,7 @@ import numpy as np
 from peghole_mjx.envs import load
 from peghole_mjx.training.config import load_train_config
 from peghole_mjx.training.sac import SACTrainer
-from peghole_mjx.treenames import named_leaves
+from peghole_mjx.core.treenames import named_leaves
 
 tiny = {"num_envs": 8, "steps_per_call": 10, "eval_every": 400, "num_eval_envs": 8,
         "batch_size": 128, "grad_updates_per_step": 8, "min_replay_size": 80,
@@ -109,7 +109,7 @@ def test_distributed_without_a_coordinator_is_one_line(tmp_path):
     root = str(Path(__file__).resolve().parents[1])
     env = {k: v for k, v in os.environ.items() if not k.startswith("JAX_COORDINATOR")}
     env.update(PYTHONPATH=root, JAX_PLATFORMS="cpu", JAX_NUM_PROCESSES="2", JAX_PROCESS_ID="0")
-    cmd = [sys.executable, "-m", "peghole_mjx.cli", "train", "--distributed", "--env"]
+    cmd = [sys.executable, "-m", "peghole_mjx.cli.main", "train", "--distributed", "--env"]
     cmd += ["RectExtract", "--quick", "--out", str(tmp_path / "run")]
     res = subprocess.run(cmd, env=env, capture_output=True, text=True, timeout=600)
     assert res.returncode == 2, res.stderr[-2000:]

@@ -1,6 +1,6 @@
-"""One default engine, ``auto`` (issue 51, item 5), and the engine as provenance, not the task.
+"""One default engine, ``auto``, and the engine as provenance, not the task.
 
-``auto`` is :func:`peghole_mjx._mjx.default_engine`: MuJoCo C without a GPU; on a CUDA GPU
+``auto`` is :func:`peghole_mjx.sim.engines.default_engine`: MuJoCo C without a GPU; on a CUDA GPU
 MJX-Warp when warp-lang is installed, else MJX-JAX. The env config, the commands, the
 experiments, the Gymnasium adapter and Playground default to it; a built env's config holds
 the engine chosen. A policy's ``env_overrides`` carry no engine entry (its ``engine`` field
@@ -15,12 +15,13 @@ from pathlib import Path
 import jax
 import pytest
 
-from peghole_mjx import _mjx, envs
+from peghole_mjx import envs
 from peghole_mjx.envs import playground
-from peghole_mjx.envs.engines import ENGINE_KEYS, engine_label, resolve_engine, task_overrides
 from peghole_mjx.experiments import cli as exp_cli
 from peghole_mjx.experiments import compliance as cx
 from peghole_mjx.policies import PolicyBundle, check_as_trained
+from peghole_mjx.sim import engines as sim_engines
+from peghole_mjx.sim.engines import ENGINE_KEYS, engine_label, resolve_engine, task_overrides
 from peghole_mjx.training.config import load_train_config
 from peghole_mjx.training.evaluate import config_differences, requested_config
 from peghole_mjx.training.run import policy_meta
@@ -38,8 +39,8 @@ from peghole_mjx.training.run import policy_meta
 )
 def test_default_engine_by_backend_and_warp(monkeypatch, backend, warp, engine):
     monkeypatch.setattr(jax, "default_backend", lambda: backend)
-    monkeypatch.setattr(_mjx, "WARP_AVAILABLE", warp)
-    assert _mjx.default_engine() == engine
+    monkeypatch.setattr(sim_engines, "WARP_AVAILABLE", warp)
+    assert sim_engines.default_engine() == engine
     # the experiments have no warp path: auto on a GPU is their mjx
     assert cx.auto_engine() == ("mujoco" if backend == "cpu" else "mjx")
     assert cx.auto_engine(x64=True) == "mjx"  # MJX's float64 asked for
@@ -47,7 +48,7 @@ def test_default_engine_by_backend_and_warp(monkeypatch, backend, warp, engine):
 
 def test_resolve_engine_gpu_with_warp_sets_impl(monkeypatch):
     monkeypatch.setattr(jax, "default_backend", lambda: "gpu")
-    monkeypatch.setattr(_mjx, "WARP_AVAILABLE", True)
+    monkeypatch.setattr(sim_engines, "WARP_AVAILABLE", True)
     config = resolve_engine(envs.get_default_config("RectExtract"))
     assert (config.engine, config.impl) == ("mjx", "warp")
     assert engine_label(config) == "mjx-warp"

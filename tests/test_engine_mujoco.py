@@ -1,4 +1,4 @@
-"""The ``mujoco`` engine (MuJoCo C through mujoco.batch, envs/engine_mujoco.py): its array
+"""The ``mujoco`` engine (MuJoCo C through mujoco.batch, sim/engine_mujoco.py): its array
 kinematics against MuJoCo's own, its substeps against a loop over one MjData per world, per-world
 model fields, NaN worlds, and its bad-input errors."""
 
@@ -14,9 +14,9 @@ from benchmarks.common import PERF_RESULTS
 from benchmarks.studies import engine_contacts
 from peghole_mjx import envs
 from peghole_mjx.control.reference import impedance_torque, impedance_torque_c
-from peghole_mjx.envs.engine_mujoco import STATE_SPEC, MujocoEngine
+from peghole_mjx.core.errors import UserInputError
 from peghole_mjx.envs.rollout import _batch_reset, scripted_policy
-from peghole_mjx.errors import UserInputError
+from peghole_mjx.sim.engine_mujoco import STATE_SPEC, MujocoEngine
 
 N = 4
 
@@ -237,7 +237,7 @@ def test_a_policy_on_another_engine_is_evaluated_as_trained():
 
 
 def test_engine_choices_map_to_config_entries():
-    from peghole_mjx.envs.engines import default_engine, engine_overrides
+    from peghole_mjx.sim.engines import default_engine, engine_overrides
 
     assert engine_overrides("mjx-warp") == {"engine": "mjx", "impl": "warp"}
     assert engine_overrides("mujoco") == {"engine": "mujoco"}

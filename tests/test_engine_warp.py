@@ -31,10 +31,10 @@ import pytest
 pytest.importorskip("warp", reason="warp-lang is not installed (pip install 'peghole_mjx[warp]')")
 
 from peghole_mjx import envs
-from peghole_mjx._mjx import WARP_AVAILABLE
-from peghole_mjx.envs.engines import batch_reset, select_worlds
+from peghole_mjx.core._mjx import WARP_AVAILABLE
 from peghole_mjx.envs.rollout import make_runner, scripted_policy
 from peghole_mjx.envs.task_make import ContactRun, make_builtin
+from peghole_mjx.sim.engines import batch_reset, select_worlds
 
 pytestmark = pytest.mark.skipif(not WARP_AVAILABLE, reason="MJX cannot import MuJoCo Warp")
 
@@ -97,7 +97,7 @@ def test_warp_on_the_cpu_matches_mjx_jax(name):
 
 
 #: the worlds of the batched test: MuJoCo Warp's contact pool is shared by a batch's worlds
-#: (``naconmax`` per world times the worlds: envs/engines.py ``batch_worlds``)
+#: (``naconmax`` per world times the worlds: sim/engines.py ``batch_worlds``)
 BATCH = 3
 
 

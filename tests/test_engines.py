@@ -13,8 +13,8 @@ import pytest
 
 from benchmarks.studies import pull_speed as ps
 from benchmarks.studies.c_replica import pull_c
-from peghole_mjx.cli import main
-from peghole_mjx.errors import UserInputError
+from peghole_mjx.cli.main import main
+from peghole_mjx.core.errors import UserInputError
 from peghole_mjx.experiments import compliance as cx
 from peghole_mjx.experiments import contact_check as cc
 from peghole_mjx.experiments import sweep

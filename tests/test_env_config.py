@@ -21,6 +21,7 @@ import numpy as np
 import pytest
 
 from peghole_mjx import envs
+from peghole_mjx.core.errors import UserInputError
 from peghole_mjx.envs import base, extraction
 from peghole_mjx.envs.config import apply_overrides
 from peghole_mjx.envs.randomization import (
@@ -31,7 +32,6 @@ from peghole_mjx.envs.randomization import (
 )
 from peghole_mjx.envs.reward import outcome_terms, reward_terms
 from peghole_mjx.envs.stuck import weld_solref
-from peghole_mjx.errors import UserInputError
 
 ENV = "RectExtract"
 PEG_LENGTH_M = 0.15
@@ -320,8 +320,8 @@ def test_impl_and_warp_buffers_are_read(monkeypatch):
 
 def test_engine_and_its_threads_are_read():
     """engine selects the physics engine; mujoco_threads sizes its mujoco.batch pool."""
-    from peghole_mjx.envs.engine_mujoco import MujocoEngine, available_threads
-    from peghole_mjx.envs.engines import MjxEngine
+    from peghole_mjx.sim.engine_mujoco import MujocoEngine, available_threads
+    from peghole_mjx.sim.engines import MjxEngine
 
     assert isinstance(envs.load(ENV, config_overrides={"engine": "mjx"}).engine, MjxEngine)
     auto = MujocoEngine if jax.default_backend() == "cpu" else MjxEngine  # engine auto
@@ -406,8 +406,8 @@ def test_geometry_entry_changes_the_preset_spec_and_refuses_bad_changes():
     """config.geometry: a JSON object of spec fields changed from the preset's (held-out
     geometries); a dict given as an override is stored as canonical JSON; unknown fields and
     infeasible specs are refused in one line."""
+    from peghole_mjx.core.errors import UserInputError
     from peghole_mjx.envs.config import env_spec
-    from peghole_mjx.errors import UserInputError
     from peghole_mjx.geometry.specs import get_preset
 
     default = envs.get_default_config("RectExtract")

@@ -10,14 +10,14 @@ import numpy as np
 import pytest
 
 from peghole_mjx import envs
+from peghole_mjx.core.errors import UserInputError
+from peghole_mjx.core.validation import loads as strict_json  # no bare NaN
 from peghole_mjx.envs.contacts import ContactReplay
-from peghole_mjx.envs.engines import ENGINES
 from peghole_mjx.envs.reward import REWARD_WEIGHTS, reward_terms
 from peghole_mjx.envs.rollout import random_policy, rollout, scripted_policy
-from peghole_mjx.errors import UserInputError
 from peghole_mjx.geometry.check import numeric
 from peghole_mjx.geometry.mjcf import CONTACT_CAPS
-from peghole_mjx.validation import loads as strict_json  # no bare NaN
+from peghole_mjx.sim.engines import ENGINES
 
 N_WORLDS = 8
 
@@ -53,7 +53,7 @@ def compiled_c(request) -> Compiled:
 MJX_ENVS = ("RectExtract", "DualExtract")
 
 
-#: the task's tests run on every physics engine (envs/engines.py): one task definition
+#: the task's tests run on every physics engine (sim/engines.py): one task definition
 @pytest.fixture(
     scope="module",
     params=[(e, g) for g in ENGINES for e in (MJX_ENVS if g == "mjx" else envs.ALL_ENVS)],
@@ -342,7 +342,7 @@ def test_cli_rollout_runs_on_every_registered_env(name):
     """`peghole envs rollout --env E --policy scripted --episodes 4` for every registered env
     (the hard variants' presets once failed a name check), on the MuJoCo C engine."""
     res = subprocess.run(
-        [sys.executable, "-m", "peghole_mjx.cli", "envs", "rollout", "--env", name,
+        [sys.executable, "-m", "peghole_mjx.cli.main", "envs", "rollout", "--env", name,
          "--policy", "scripted", "--episodes", "4", "--engine", "mujoco", "--json"],
         capture_output=True,
         text=True,
@@ -358,7 +358,7 @@ def test_cli_rollout_scripted_rect_8_episodes():
         [
             sys.executable,
             "-m",
-            "peghole_mjx.cli",
+            "peghole_mjx.cli.main",
             "envs",
             "rollout",
             "--env",
@@ -398,7 +398,7 @@ def test_cli_rollout_bad_input():
         (["--env", "RectExtract", "--set", "action.nope=1"], "action has no 'nope'"),
     ):
         res = subprocess.run(
-            [sys.executable, "-m", "peghole_mjx.cli", "envs", "rollout", *args],
+            [sys.executable, "-m", "peghole_mjx.cli.main", "envs", "rollout", *args],
             capture_output=True,
             text=True,
             timeout=300,
@@ -411,7 +411,7 @@ def test_contact_overflow_reads_warps_buffer_bits_only():
     """MJX-JAX data never overflows; Warp's sticky bitmask counts only dropped contacts/rows."""
     from types import SimpleNamespace
 
-    from peghole_mjx._mjx import mjx
+    from peghole_mjx.core._mjx import mjx
     from peghole_mjx.envs.base import contact_overflow
 
     env = envs.load("RectExtract")
@@ -427,7 +427,7 @@ def test_contact_overflow_reads_warps_buffer_bits_only():
 
 
 def _cuda_warp() -> bool:
-    from peghole_mjx._mjx import WARP_AVAILABLE
+    from peghole_mjx.core._mjx import WARP_AVAILABLE
 
     return WARP_AVAILABLE and any(d.platform == "gpu" for d in jax.devices())
 

@@ -6,8 +6,8 @@ import sys
 
 import pytest
 
-from peghole_mjx import cli
-from peghole_mjx.errors import MissingExtraError, UserInputError
+from peghole_mjx.cli import main as cli
+from peghole_mjx.core.errors import MissingExtraError, UserInputError
 
 
 @pytest.mark.parametrize("module", ["trimesh", "coacd"])
@@ -33,7 +33,7 @@ def test_decompose_without_the_cad_extra_names_it(tmp_path, capsys, monkeypatch,
 
 
 def test_missing_extra_error_is_a_user_input_and_an_import_error():
-    from peghole_mjx._optional import optional_import
+    from peghole_mjx.core._optional import optional_import
 
     with pytest.raises(MissingExtraError) as info:
         optional_import("gymnasium_not_installed_here", "the test")
@@ -43,17 +43,18 @@ def test_missing_extra_error_is_a_user_input_and_an_import_error():
 
 
 def test_errors_module_imports_nothing_from_the_package():
-    """Any module can raise the package's errors without an import cycle."""
+    """Any module can raise the package's errors without an import cycle (``core/__init__.py``
+    imports nothing)."""
     code = (
-        "import sys, peghole_mjx.errors; "
+        "import sys, peghole_mjx.core.errors; "
         "print(sorted(m for m in sys.modules if m.startswith('peghole_mjx.')))"
     )
     res = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
-    assert res.stdout.strip() == "['peghole_mjx.errors']"
+    assert res.stdout.strip() == "['peghole_mjx.core', 'peghole_mjx.core.errors']"
 
 
 def test_specs_reexports_the_geometry_error():
-    from peghole_mjx import errors
+    from peghole_mjx.core import errors
     from peghole_mjx.geometry import specs
 
     assert specs.InfeasibleGeometryError is errors.InfeasibleGeometryError

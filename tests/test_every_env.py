@@ -1,6 +1,6 @@
 """Every command over every registered env (``peghole_mjx.envs.ALL_ENVS``), at the smallest size.
 
-One test per env runs, in this process (``peghole_mjx.cli.main``), so that compiled graphs
+One test per env runs, in this process (``peghole_mjx.cli.main.main``), so that compiled graphs
 are shared through the persistent compilation cache (tests/conftest.py):
 
 1. ``peghole envs rollout --env E --policy scripted`` in the env a tiny ``--quick`` training
@@ -25,13 +25,13 @@ import json
 import pytest
 
 from benchmarks.evals import generalisation
-from peghole_mjx.cli import main
+from peghole_mjx.cli.main import main
+from peghole_mjx.core.validation import loads
 from peghole_mjx.envs import ALL_ENVS
-from peghole_mjx.envs.engines import engine_overrides
 from peghole_mjx.policies import PRETRAINED, load_policy
+from peghole_mjx.sim.engines import engine_overrides
 from peghole_mjx.training.config import load_train_config
 from peghole_mjx.training.evaluate import requested_config
-from peghole_mjx.validation import loads
 
 #: each env's commands compile their own graphs: dropped when its test ends (kept for the
 #: module, the four envs' graphs held 2.8 GB in one worker, 2026-12-02)

@@ -8,7 +8,7 @@ import json
 import numpy as np
 import pytest
 
-from peghole_mjx.cli import main
+from peghole_mjx.cli.main import main
 from peghole_mjx.experiments.compliance import (
     ExperimentConfig,
     Extraction,

@@ -25,10 +25,9 @@ import numpy as np
 import pytest
 from test_faults import assert_one_line, peghole
 
+from peghole_mjx.core.errors import CorruptFileError, UserInputError
 from peghole_mjx.deploy import DeployedPolicy, SensorError
 from peghole_mjx.envs import get_default_config
-from peghole_mjx.envs.engines import engine_overrides
-from peghole_mjx.errors import CorruptFileError, UserInputError
 from peghole_mjx.policies import PRETRAINED, load_policy
 from peghole_mjx.policies.export import (
     EXPORT_TOLERANCE,
@@ -37,6 +36,7 @@ from peghole_mjx.policies.export import (
     jax_actions,
     run_deployed,
 )
+from peghole_mjx.sim.engines import engine_overrides
 
 ROOT = Path(__file__).resolve().parents[1]
 

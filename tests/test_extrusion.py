@@ -22,10 +22,11 @@ pytest.importorskip("coacd")
 
 from test_tasks import _refused  # noqa: E402 (the task tests' one-line refusal check)
 
-from peghole_mjx.cli import main  # noqa: E402
+from peghole_mjx.cli.main import main  # noqa: E402
+from peghole_mjx.core.errors import UserInputError  # noqa: E402
+from peghole_mjx.core.validation import loads  # noqa: E402
 from peghole_mjx.envs import task_make  # noqa: E402
 from peghole_mjx.envs.task_make import ContactRun, make_task  # noqa: E402
-from peghole_mjx.errors import UserInputError  # noqa: E402
 from peghole_mjx.geometry import coacd_budget  # noqa: E402
 from peghole_mjx.geometry import task as tf  # noqa: E402
 from peghole_mjx.geometry.decompose import CoacdParams, load_mesh  # noqa: E402
@@ -37,7 +38,6 @@ from peghole_mjx.geometry.extrusion import (  # noqa: E402
     pieces_volume,
 )
 from peghole_mjx.geometry.shapes import BUILTINS, builtin_parts, offset_convex  # noqa: E402
-from peghole_mjx.validation import loads  # noqa: E402
 
 #: the contact count of these tests: 2 worlds, 40 env steps per policy
 SHORT = ContactRun(worlds=2, env_steps=40)

@@ -24,13 +24,14 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from peghole_mjx import cli, fileio
-from peghole_mjx.errors import CorruptFileError, UserInputError
-from peghole_mjx.lock import RunLock, _proc_start
+from peghole_mjx.cli import main as cli
+from peghole_mjx.core.errors import CorruptFileError, UserInputError
+from peghole_mjx.core.validation import RANGES, dumps, json_safe
+from peghole_mjx.core.validation import loads as strict_json  # no bare NaN
+from peghole_mjx.files import fileio
+from peghole_mjx.files.lock import RunLock, _proc_start
 from peghole_mjx.training import checkpoints
 from peghole_mjx.training.config import CONFIG_DIR, TrainConfig, load_train_config
-from peghole_mjx.validation import RANGES, dumps, json_safe
-from peghole_mjx.validation import loads as strict_json  # no bare NaN
 
 TINY = {
     "num_envs": 8,
@@ -297,7 +298,7 @@ _SAVE_FOREVER = """
 import sys, json
 from pathlib import Path
 import numpy as np
-from peghole_mjx import fileio
+from peghole_mjx.files import fileio
 from peghole_mjx.training import checkpoints
 ckpt = Path(sys.argv[1])
 step = 400
@@ -507,9 +508,9 @@ def test_train_config_owns_every_default_and_the_cli_agrees_with_python(tmp_path
     """TrainConfig holds the shared defaults, TRAINING_ENV_DEFAULTS the env entries training
     sets (compliance strategy on); ``peghole train`` without flags and ``load_train_config``
     from Python build the same config, but for the physics engine the CLI picks
-    (``--engine auto``: envs.engines.default_engine)."""
-    from peghole_mjx.cli import build_parser
-    from peghole_mjx.envs.engines import default_engine
+    (``--engine auto``: sim.engines.default_engine)."""
+    from peghole_mjx.cli.main import build_parser
+    from peghole_mjx.sim.engines import default_engine
     from peghole_mjx.training.cli import train_config_from_args
     from peghole_mjx.training.config import TRAINING_ENV_DEFAULTS, default
 

@@ -21,13 +21,13 @@ import pytest
 from test_faults import assert_one_line, peghole
 
 from peghole_mjx import envs
+from peghole_mjx.core.errors import UserInputError
+from peghole_mjx.core.validation import RANGES
 from peghole_mjx.envs import base as env_base
 from peghole_mjx.envs import rollout as rollout_mod
 from peghole_mjx.envs.config import FLAGS, OPTIONAL, TEXT, TUPLES, apply_overrides, leaves
 from peghole_mjx.envs.metrics import EPISODE_RECORD
-from peghole_mjx.errors import UserInputError
 from peghole_mjx.geometry.specs import PRESETS, get_preset
-from peghole_mjx.validation import RANGES
 
 ROLLOUT = ["envs", "rollout", "--env", "RectExtract", "--policy", "scripted", "--episodes", 4]
 
@@ -402,7 +402,7 @@ def test_vector_env_num_envs_must_be_a_whole_number_of_worlds(stand_in, num_envs
 
 
 def test_a_rollout_batch_beyond_memory_is_refused_before_it_runs(capsys, monkeypatch):
-    from peghole_mjx import memory
+    from peghole_mjx.core import memory
 
     calls = []
     monkeypatch.setattr(rollout_mod, "_rollout_slice", _nan_slice(calls))
@@ -422,7 +422,7 @@ def test_a_rollout_batch_beyond_memory_is_refused_before_it_runs(capsys, monkeyp
 def test_the_world_ceiling_bounds_the_built_in_worlds(name, overrides):
     """The shortcut of ``memory.check_worlds`` is sound only while every built-in world is
     well below its ceiling (rect's box scene and dual's mesh scene are the largest)."""
-    from peghole_mjx import memory
+    from peghole_mjx.core import memory
 
     env = envs.load(name, config_overrides=overrides)
     assert 0 < memory.world_bytes(env) < memory.WORLD_CEILING_BYTES / 10

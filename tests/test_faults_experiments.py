@@ -23,11 +23,11 @@ import numpy as np
 import pytest
 from test_faults import assert_one_line, peghole
 
-from peghole_mjx import fileio
 from peghole_mjx.experiments import compliance as cx
 from peghole_mjx.experiments import contact_check as cc
 from peghole_mjx.experiments import sweep
-from peghole_mjx.lock import _proc_start
+from peghole_mjx.files import fileio
+from peghole_mjx.files.lock import _proc_start
 
 TINY = [
     "experiment",
@@ -355,7 +355,7 @@ def test_a_negative_seed_is_an_argparse_line(command, tmp_path, capsys, no_sim):
 
 
 def test_grid_ranges_come_from_validation_ranges():
-    from peghole_mjx.validation import RANGES
+    from peghole_mjx.core.validation import RANGES
 
     for kind, _, _ in sweep.GRID_AXES.values():
         assert kind in RANGES

@@ -17,9 +17,9 @@ import numpy as np
 import pytest
 from test_faults import assert_one_line, peghole
 
-from peghole_mjx import fileio
-from peghole_mjx.errors import InfeasibleGeometryError, UserInputError
-from peghole_mjx.validation import MIN_PART_MM, RANGES
+from peghole_mjx.core.errors import InfeasibleGeometryError, UserInputError
+from peghole_mjx.core.validation import MIN_PART_MM, RANGES
+from peghole_mjx.files import fileio
 
 trimesh = pytest.importorskip("trimesh")
 pytest.importorskip("manifold3d")  # cad_meshes' boolean difference

@@ -20,8 +20,8 @@ import numpy as np
 import pytest
 from test_faults import assert_one_line, peghole
 
-from peghole_mjx import fileio
-from peghole_mjx.errors import CorruptFileError
+from peghole_mjx.core.errors import CorruptFileError
+from peghole_mjx.files import fileio
 from peghole_mjx.policies import PRETRAINED, load_policy
 
 evaluate_module = importlib.import_module("peghole_mjx.training.evaluate")
@@ -400,9 +400,9 @@ def test_demo_output_is_checked_before_any_stage(tmp_path, capsys, monkeypatch, 
 SLOW_COMMAND = textwrap.dedent(
     """
     import sys, time
-    from peghole_mjx import cli
+    from peghole_mjx.cli import main as cli
     import peghole_mjx.demo as demo
-    from peghole_mjx.lock import RunLock
+    from peghole_mjx.files.lock import RunLock
 
     def slow(args):
         with RunLock(sys.argv[1]):
@@ -459,7 +459,7 @@ def test_sigterm_is_handled_like_ctrl_c_one_line_lock_released(tmp_path, sig, rc
 # the broad handlers the package keeps, each for a stated reason; none turns a user's mistake
 # into silence (a new one must be added here with its reason, or narrowed)
 BROAD_HANDLERS = {
-    "cli.py": 1,  # the bug catcher: traceback + "internal error", exit 1
+    "cli/main.py": 1,  # the bug catcher: traceback + "internal error", exit 1
     "training/run.py": 2,  # a learning-curve plot must never lose a finished run (warned)
     "training/seeds.py": 1,  # same, for a multi-seed run
     "experiments/report.py": 1,  # the analytic cross-check of one cell, recorded as an error
@@ -467,11 +467,11 @@ BROAD_HANDLERS = {
     "geometry/coacd_child.py": 1,  # CoACD's process reports whatever ends it, in one line
     "training/commands.py": 1,  # remove the empty --out a refused train created, then re-raise
     "policies/__init__.py": 2,  # remove the half-written policy folder, then re-raise
-    "provenance.py": 1,  # device name for a result file: falls back to the CPU's
+    "files/provenance.py": 1,  # device name for a result file: falls back to the CPU's
     "deploy.py": 1,  # onnxruntime's own error classes for a damaged file -> one line
     "policies/export.py": 1,  # remove the half-written export, then re-raise
     "envs/task_make.py": 1,  # remove the half-written task folder, then re-raise
-    "lock.py": 1,  # record the files a writer changed before it failed, then re-raise
+    "files/lock.py": 1,  # record the files a writer changed before it failed, then re-raise
 }
 
 

@@ -24,14 +24,16 @@ import numpy as np
 import pytest
 from test_faults import assert_one_line, full_disk, peghole
 
-from peghole_mjx import cli, envs, fileio
+from peghole_mjx import envs
+from peghole_mjx.cli import main as cli
+from peghole_mjx.core.errors import UserInputError
+from peghole_mjx.core.validation import check, reduction_pct
 from peghole_mjx.envs import rollout as rollout_mod
-from peghole_mjx.errors import UserInputError
+from peghole_mjx.files import fileio
 from peghole_mjx.geometry import decompose
 from peghole_mjx.training import commands
 from peghole_mjx.training.config import load_train_config, write_run_record
 from peghole_mjx.training.run import naming
-from peghole_mjx.validation import check, reduction_pct
 
 ROOT = Path(__file__).resolve().parents[1]
 MUJOCO = {"engine": "mujoco"}
@@ -172,7 +174,7 @@ def test_coacd_refuses_a_mesh_of_too_many_faces(monkeypatch):
 HANG = """
 import sys
 
-from peghole_mjx import cli
+from peghole_mjx.cli import main as cli
 from peghole_mjx.geometry import decompose
 
 # as CoACD's native loop: deaf to SIGINT and SIGTERM

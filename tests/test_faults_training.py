@@ -35,11 +35,11 @@ from test_faults import (
     steps_in,
 )
 
-from peghole_mjx import memory
-from peghole_mjx.errors import CorruptFileError, UserInputError
-from peghole_mjx.lock import RunLock, _proc_start
+from peghole_mjx.core import memory
+from peghole_mjx.core.errors import CorruptFileError, UserInputError
+from peghole_mjx.core.validation import loads as strict_json
+from peghole_mjx.files.lock import RunLock, _proc_start
 from peghole_mjx.training import checkpoints
-from peghole_mjx.validation import loads as strict_json
 
 TINY_SETS = [f"--set={k}={v}" for k, v in TINY.items()]
 
@@ -209,7 +209,7 @@ def test_worlds_beyond_memory_are_refused_naming_the_setting(
 def test_train_refuses_an_out_without_room_for_its_checkpoints(
     tmp_path, capsys, monkeypatch, no_simulation
 ):
-    from peghole_mjx import fileio
+    from peghole_mjx.files import fileio
 
     monkeypatch.setattr(fileio, "free_bytes", lambda path: 1 << 20)
     out = tmp_path / "run"

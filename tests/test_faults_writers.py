@@ -22,12 +22,13 @@ import pytest
 from test_faults import assert_one_line, peghole
 from test_faults_experiments import fake_sweep, no_sim, tiny_cfg  # noqa: F401 (fixtures)
 
-from peghole_mjx import fileio, policies
-from peghole_mjx.checkpoint_folders import checkpoint_name, seal
-from peghole_mjx.demo_cli import REPORT_TITLE
-from peghole_mjx.errors import CorruptFileError, UserInputError
+from peghole_mjx import policies
+from peghole_mjx.cli.demo import REPORT_TITLE
+from peghole_mjx.core.errors import CorruptFileError, UserInputError
 from peghole_mjx.experiments import sweep
-from peghole_mjx.lock import OUTPUT_LOCK, OutputLock, RunLockedError, _proc_start
+from peghole_mjx.files import fileio
+from peghole_mjx.files.checkpoint_folders import checkpoint_name, seal
+from peghole_mjx.files.lock import OUTPUT_LOCK, OutputLock, RunLockedError, _proc_start
 
 PRETRAINED = Path(policies.__file__).parent / "rect_extract"
 

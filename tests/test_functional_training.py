@@ -154,7 +154,7 @@ def test_seeds_run_resumes_bit_for_bit(seeds_run, tmp_path):
 
 
 def test_seeds_must_be_a_positive_whole_number(tmp_path):
-    from peghole_mjx.errors import UserInputError
+    from peghole_mjx.core.errors import UserInputError
     from peghole_mjx.training.seeds import SeedsRun
 
     with pytest.raises(UserInputError, match="--seeds"):
@@ -179,7 +179,7 @@ def test_t_interval_matches_the_textbook_value():
     ],
 )
 def test_cli_seeds_bad_input_is_one_line(tmp_path, capsys, extra, message):
-    from peghole_mjx.cli import main
+    from peghole_mjx.cli.main import main
 
     try:  # argparse refuses a bad --seeds itself (exit 2 by SystemExit), the command the rest
         rc = main(
@@ -193,7 +193,7 @@ def test_cli_seeds_bad_input_is_one_line(tmp_path, capsys, extra, message):
 
 
 def test_cli_resume_of_a_seeds_run_takes_its_own_config(seeds_run, capsys):
-    from peghole_mjx.cli import main
+    from peghole_mjx.cli.main import main
 
     run, _ = seeds_run
     rc = main(["train", "--resume", str(run.out), "--set", "num_envs=8"])

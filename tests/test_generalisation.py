@@ -9,7 +9,7 @@ import json
 import pytest
 
 from benchmarks.evals import generalisation
-from peghole_mjx.errors import UserInputError
+from peghole_mjx.core.errors import UserInputError
 from peghole_mjx.geometry.specs import PRESETS, get_preset, with_changes
 
 

@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 from gymnasium.utils.env_checker import check_env
 
-from peghole_mjx.errors import UserInputError
+from peghole_mjx.core.errors import UserInputError
 from peghole_mjx.gym import INFO_KEYS, PegHoleGymEnv, PegHoleVectorEnv
 
 pytestmark = pytest.mark.slow

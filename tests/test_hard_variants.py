@@ -68,7 +68,7 @@ def test_a_hard_variant_policy_fits_its_env_and_not_the_base_one():
     """The hard variants share their base env's class: the registry name tells them apart."""
     from pathlib import Path
 
-    from peghole_mjx.errors import UserInputError
+    from peghole_mjx.core.errors import UserInputError
     from peghole_mjx.policies import PolicyBundle
 
     hard, base = envs.load("RectExtractHard"), envs.load("RectExtract")

@@ -1,4 +1,4 @@
-"""The opt-in MJX cone-Hessian fix (peghole_mjx/mjx_fixes.py): same physics where MJX's clamp
+"""The opt-in MJX cone-Hessian fix (peghole_mjx/sim/mjx_fixes.py): same physics where MJX's clamp
 is inactive, and a clear error where it does not apply."""
 
 import jax
@@ -6,8 +6,8 @@ import mujoco
 import numpy as np
 import pytest
 
-from peghole_mjx import mjx_fixes
-from peghole_mjx._mjx import mjx
+from peghole_mjx.core._mjx import mjx
+from peghole_mjx.sim import mjx_fixes
 
 SLIDING_BOX = """
 <mujoco>

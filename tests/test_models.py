@@ -7,9 +7,9 @@ import mujoco
 import numpy as np
 import pytest
 
-from peghole_mjx._mjx import mjx
-from peghole_mjx.cli import main
-from peghole_mjx.errors import UserInputError
+from peghole_mjx.cli.main import main
+from peghole_mjx.core._mjx import mjx
+from peghole_mjx.core.errors import UserInputError
 from peghole_mjx.geometry import cli as gcli
 from peghole_mjx.geometry import mjcf
 from peghole_mjx.geometry.check import (
@@ -262,7 +262,7 @@ def test_ik_reports_unreachable_targets():
 
 
 def test_cli_bad_representation_and_cap_are_one_line_errors(tmp_path, capsys):
-    from peghole_mjx.cli import main
+    from peghole_mjx.cli.main import main
 
     for args, msg in (
         (["check", "--preset", "dual-2", "--representation", "sphere"], "unknown collision"),

@@ -17,9 +17,11 @@ import numpy as np
 import pytest
 from test_faults import assert_one_line, peghole
 
-from peghole_mjx import cli, deploy, fileio
+from peghole_mjx import deploy
+from peghole_mjx.cli import main as cli
+from peghole_mjx.core.errors import CorruptFileError, UserInputError
 from peghole_mjx.deploy import DeployedPolicy
-from peghole_mjx.errors import CorruptFileError, UserInputError
+from peghole_mjx.files import fileio
 from peghole_mjx.policies import save_policy
 
 Z3 = np.zeros(3)

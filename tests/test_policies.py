@@ -5,7 +5,7 @@ import math
 
 import pytest
 
-from peghole_mjx.errors import UserInputError
+from peghole_mjx.core.errors import UserInputError
 from peghole_mjx.policies import PRETRAINED, load_policy, resolve_policy_path
 
 ROLLOUT_KEYS = {"success_rate", "mean_time_s", "mean_fz_N", "peak_fz_N", "mean_fxy_N", "episodes"}
@@ -40,8 +40,8 @@ def test_rect_policy_reproduces_its_committed_success_rate():
     record, 256 episodes): the MJX rollout graph of the policy compiled for 2.7 min of a 2-core
     CPU (161 s of a 36 min suite, 2026-12-03), MuJoCo C's in seconds."""
     from benchmarks.common import EVALS_RESULTS
-    from peghole_mjx.envs.engines import engine_overrides
     from peghole_mjx.envs.rollout import rollout
+    from peghole_mjx.sim.engines import engine_overrides
 
     record = json.loads((EVALS_RESULTS / "cross_engine_cpu-2core.json").read_text())
     committed = record["policies"]["rect"]["mujoco"]["policy"]
@@ -101,7 +101,7 @@ def test_policy_whose_env_differs_from_its_training_config_is_refused(tmp_path):
 def test_evaluation_refuses_an_env_other_than_the_training_env(capsys):
     """Evaluation of a policy in an env config other than its training one is refused in one
     line naming the keys (before any env is built), unless asked for (--cross)."""
-    from peghole_mjx.cli import main
+    from peghole_mjx.cli.main import main
     from peghole_mjx.training.evaluate import evaluate
 
     with pytest.raises(UserInputError, match=r"preset \(trained 'rect-2', requested 'rect-1'\)"):

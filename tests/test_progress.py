@@ -1,4 +1,4 @@
-"""Progress on stderr (peghole_mjx/progress.py): a labelled phase ticks while its work runs,
+"""Progress on stderr (peghole_mjx/core/progress.py): a labelled phase ticks while its work runs,
 says nothing when disabled, and ends its line also when the work raises."""
 
 from __future__ import annotations
@@ -7,7 +7,7 @@ import time
 
 import pytest
 
-from peghole_mjx import progress as prog
+from peghole_mjx.core import progress as prog
 
 
 def test_phase_shows_its_label_and_ticks_while_the_work_runs(capsys, monkeypatch):

@@ -57,7 +57,7 @@ def test_quick_start_main_job_is_the_demo():
 
 
 def test_every_cli_command_is_documented_in_the_readme():
-    from peghole_mjx.cli import build_parser
+    from peghole_mjx.cli.main import build_parser
 
     readme = (ROOT / "README.md").read_text()
     sub = next(a for a in build_parser()._actions if a.dest == "group")
@@ -79,7 +79,7 @@ def test_relative_links_of_the_readme_and_docs_resolve():
 
 def test_help_texts_show_no_doubled_percent_sign():
     """argparse %-formats ``help=`` strings, not ``description=``: a "%%" there shows as is."""
-    from peghole_mjx.cli import build_parser
+    from peghole_mjx.cli.main import build_parser
 
     def walk(parser):
         yield parser

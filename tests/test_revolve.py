@@ -11,9 +11,9 @@ import pytest
 trimesh = pytest.importorskip("trimesh")
 manifold3d = pytest.importorskip("manifold3d")
 
+from peghole_mjx.core.errors import UserInputError  # noqa: E402
 from peghole_mjx.envs import task_make  # noqa: E402
 from peghole_mjx.envs.task_make import ContactRun, make_task  # noqa: E402
-from peghole_mjx.errors import UserInputError  # noqa: E402
 from peghole_mjx.geometry import task as tf  # noqa: E402
 from peghole_mjx.geometry.extrusion import mesh_free_travel_mm  # noqa: E402
 from peghole_mjx.geometry.revolve import (  # noqa: E402

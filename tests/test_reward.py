@@ -158,7 +158,7 @@ def test_failure_cost_is_a_lifetime_at_the_largest_step_cost():
     ],
 )
 def test_an_outcome_reward_that_would_misrank_is_refused_in_one_line(overrides, message):
-    from peghole_mjx.errors import UserInputError
+    from peghole_mjx.core.errors import UserInputError
 
     with pytest.raises(UserInputError, match=message) as exc:
         envs.load("RectExtract", config_overrides={"reward_config.kind": "outcome", **overrides})
@@ -166,7 +166,7 @@ def test_an_outcome_reward_that_would_misrank_is_refused_in_one_line(overrides, 
 
 
 def test_the_thesis_reward_takes_any_discount_and_an_unknown_kind_is_refused():
-    from peghole_mjx.errors import UserInputError
+    from peghole_mjx.core.errors import UserInputError
 
     assert _config(**{"reward_config.discount": 0.99}).reward_config.kind == "thesis"
     with pytest.raises(UserInputError, match="reward_config.kind must be one of thesis, outcome"):
@@ -174,7 +174,7 @@ def test_the_thesis_reward_takes_any_discount_and_an_unknown_kind_is_refused():
 
 
 def test_training_pays_eq_4_4_by_default_and_the_outcome_reward_at_its_discount():
-    from peghole_mjx.errors import UserInputError
+    from peghole_mjx.core.errors import UserInputError
     from peghole_mjx.training.config import load_train_config
 
     thesis = load_train_config("RectExtract", "cpu")

@@ -1,4 +1,4 @@
-"""Importing the package sets nothing process-wide; :func:`peghole_mjx.runtime.configure` does.
+"""Importing the package sets nothing process-wide; :func:`peghole_mjx.core.runtime.configure` does.
 
 Each check runs in a fresh interpreter (the test process's own environment was configured by
 conftest.py), with the variables ``configure`` sets removed from its environment first.
@@ -39,7 +39,7 @@ changed = {k: os.environ.get(k) for k in set(before) | set(os.environ)
            if before.get(k) != os.environ.get(k)}
 out = {"env": changed, "config_before": cfg0, "config_after": cfg()}
 if sys.argv[1:] == ["configure"]:
-    from peghole_mjx import runtime
+    from peghole_mjx.core import runtime
     runtime.configure()
     out["configured"] = {k: os.environ.get(k) for k in ("XLA_FLAGS", "MUJOCO_GL",
                          "JAX_COMPILATION_CACHE_DIR")}

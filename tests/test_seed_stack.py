@@ -11,9 +11,9 @@ from benchmarks.baselines.pybullet_peghole import check_config, make_gym_env
 from benchmarks.baselines.time_to_success import compare
 from benchmarks.studies.seed_stack_dual_hull import run_both
 from peghole_mjx.control.reference import rotvec_from_mat
+from peghole_mjx.core.errors import UserInputError
 from peghole_mjx.envs import get_default_config
 from peghole_mjx.envs.rect_extract import HARD_ANGULAR_ERROR_DEG
-from peghole_mjx.errors import UserInputError
 from peghole_mjx.geometry.mjcf import TOOL_DOWN_MAT
 from peghole_mjx.geometry.specs import get_preset
 

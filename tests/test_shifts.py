@@ -17,12 +17,12 @@ import numpy as np
 import pytest
 
 from peghole_mjx import envs
+from peghole_mjx.core.errors import UserInputError
+from peghole_mjx.core.validation import MAX_LATENCY_STEPS
 from peghole_mjx.envs.config import apply_overrides
-from peghole_mjx.envs.engines import MjxEngine
 from peghole_mjx.envs.extraction import hold_command
 from peghole_mjx.envs.randomization import randomization_fn
-from peghole_mjx.errors import UserInputError
-from peghole_mjx.validation import MAX_LATENCY_STEPS
+from peghole_mjx.sim.engines import MjxEngine
 
 N = 2
 STEPS = 6

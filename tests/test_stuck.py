@@ -22,13 +22,13 @@ import pytest
 
 from benchmarks.evals import stuck as study
 from peghole_mjx import envs
+from peghole_mjx.core.errors import UserInputError
 from peghole_mjx.envs.config import apply_overrides
-from peghole_mjx.envs.engine_mujoco import STATE_SPEC
 from peghole_mjx.envs.metrics import STUCK_METRICS
 from peghole_mjx.envs.randomization import breakaway_draw, randomization_fn
 from peghole_mjx.envs.rollout import scripted_policy
 from peghole_mjx.envs.stuck import WELD_NAME
-from peghole_mjx.errors import UserInputError
+from peghole_mjx.sim.engine_mujoco import STATE_SPEC
 
 ON = {"stuck.enabled": True, "mujoco_threads": 2}
 #: per world: released at the first step (the pull's first step reads ~6 N), mid-range, and

@@ -10,8 +10,8 @@ import os
 import numpy as np
 import pytest
 
-from peghole_mjx.cli import main
-from peghole_mjx.errors import UserInputError
+from peghole_mjx.cli.main import main
+from peghole_mjx.core.errors import UserInputError
 from peghole_mjx.experiments import compliance as cx
 from peghole_mjx.experiments import contact_check as cc
 from peghole_mjx.experiments import sweep

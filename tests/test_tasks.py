@@ -17,13 +17,13 @@ pytest.importorskip("coacd")
 pytest.importorskip("manifold3d")
 
 from peghole_mjx import envs  # noqa: E402
-from peghole_mjx.cli import main  # noqa: E402
+from peghole_mjx.cli.main import main  # noqa: E402
+from peghole_mjx.core.errors import UserInputError  # noqa: E402
+from peghole_mjx.core.validation import loads  # noqa: E402
 from peghole_mjx.envs.rollout import rollout, scripted_policy  # noqa: E402
 from peghole_mjx.envs.task_make import ContactRun, make_builtin  # noqa: E402
-from peghole_mjx.errors import UserInputError  # noqa: E402
 from peghole_mjx.geometry import task as tf  # noqa: E402
 from peghole_mjx.geometry.shapes import BUILTINS, builtin_parts, offset_convex  # noqa: E402
-from peghole_mjx.validation import loads  # noqa: E402
 
 #: the module's contact count: 2 worlds, 40 env steps per policy (a scripted pull ends in ~110)
 SHORT = ContactRun(worlds=2, env_steps=40)
@@ -89,7 +89,7 @@ def test_task_folder_round_trip(hex_task, capsys):
     man = json.loads((out / tf.MANIFEST).read_text())
     assert man["format"] == tf.FORMAT and man["format_version"] == tf.FORMAT_VERSION
     assert sorted(man["files"]) == sorted(tf.FILES)
-    from peghole_mjx.fileio import OWNER_MANIFEST
+    from peghole_mjx.files.fileio import OWNER_MANIFEST
 
     names = sorted(p.name for p in out.iterdir())
     assert names == sorted([*tf.FILES, tf.MANIFEST, OWNER_MANIFEST])

@@ -22,7 +22,7 @@ import jax
 import numpy as np
 import pytest
 
-from peghole_mjx.errors import UserInputError
+from peghole_mjx.core.errors import UserInputError
 from peghole_mjx.training.config import PROFILES, load_train_config
 
 TINY = {
@@ -58,9 +58,9 @@ def trained(tmp_path_factory):
 def test_a_training_call_through_the_mjx_engine():
     """The learner with its worlds on MJX: after the prefill, one training call of 2 worlds
     takes gradient steps, changes the policy and leaves every learner array finite."""
+    from peghole_mjx.core.treenames import named_leaves
     from peghole_mjx.envs import load
     from peghole_mjx.training.sac import SACTrainer
-    from peghole_mjx.treenames import named_leaves
 
     small = {"num_envs": 2, "num_eval_envs": 2, "steps_per_call": 5, "batch_size": 8}
     small |= {"grad_updates_per_step": 1, "min_replay_size": 10, "hidden_layer_sizes": [16, 16]}
@@ -301,7 +301,7 @@ def test_publish_refuses_a_checkpoint_not_in_its_training_env_and_keeps_the_publ
 
 
 def _peghole(*args):
-    return [sys.executable, "-m", "peghole_mjx.cli", *args]
+    return [sys.executable, "-m", "peghole_mjx.cli.main", *args]
 
 
 def test_kill_9_then_resume_continues_from_last_checkpoint(trained, tmp_path):

@@ -9,8 +9,8 @@ import json
 import pytest
 
 from benchmarks.evals import transfer
+from peghole_mjx.core.errors import UserInputError
 from peghole_mjx.envs.config import env_spec
-from peghole_mjx.errors import UserInputError
 from peghole_mjx.policies import PRETRAINED, load_policy
 from peghole_mjx.training.evaluate import requested_config
 

@@ -6,7 +6,7 @@ Hyperparameters: ``train/configs/<ENV>.json``; documentation: ``docs/guide/train
 
 import sys
 
-from peghole_mjx.cli import main
+from peghole_mjx.cli.main import main
 
 if __name__ == "__main__":
     sys.exit(main(["train", *sys.argv[1:]]))

@@ -59,10 +59,10 @@ from peghole_mjx.control.reference import (
     rotvec_from_mat,
 )
 from peghole_mjx.control.reference import rot_z as rotz
+from peghole_mjx.core.errors import UserInputError
 from peghole_mjx.envs import get_default_config
 from peghole_mjx.envs.reward import OUTCOME_WEIGHTS, REWARD_WEIGHTS, reward_terms
 from peghole_mjx.envs.rollout import SCRIPTED_SPEED_M_S
-from peghole_mjx.errors import UserInputError
 from peghole_mjx.geometry.mjcf import ACTUATORS, ROBOT_XML, TOOL_DOWN_MAT
 from peghole_mjx.geometry.parts import hole_parts, peg_parts
 from peghole_mjx.geometry.specs import MM, RectSpec, get_preset

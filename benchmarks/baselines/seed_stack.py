@@ -46,7 +46,7 @@ from benchmarks.common import (
     utc_now,
     versions_dict,
 )
-from peghole_mjx.errors import UserInputError
+from peghole_mjx.core.errors import UserInputError
 
 #: the thesis's SAC settings; everything else is SB3's default
 SAC_SETTINGS = {

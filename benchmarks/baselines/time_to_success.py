@@ -45,7 +45,7 @@ from benchmarks.common import (
     utc_now,
 )
 from peghole_mjx.control import LIMITS
-from peghole_mjx.provenance import provenance
+from peghole_mjx.files.provenance import provenance
 from peghole_mjx.training.config import load_train_config
 from peghole_mjx.training.run import TrainingRun
 

@@ -43,8 +43,8 @@ import peghole_mjx  # noqa: F401  (sets the XLA CPU flag before JAX starts)
 from benchmarks.common import EVALS_RESULTS, cpu_label, out_file, rel, table, wilson, write_rows
 from benchmarks.evals.hard_variants import run, summarise
 from peghole_mjx.envs import ALL_ENVS
+from peghole_mjx.files.provenance import provenance
 from peghole_mjx.policies import load_policy
-from peghole_mjx.provenance import provenance
 from peghole_mjx.training.evaluate import evaluate
 
 ENGINES = ("mjx", "mujoco")

@@ -45,13 +45,13 @@ from benchmarks.common import (
     versions_field,
     write_rows,
 )
-from peghole_mjx import fileio
+from peghole_mjx.core.errors import UserInputError
 from peghole_mjx.envs.config import apply_overrides, env_spec, geometry_text
-from peghole_mjx.envs.engines import ENGINES
-from peghole_mjx.errors import UserInputError
+from peghole_mjx.files import fileio
+from peghole_mjx.files.provenance import provenance, utc_now
 from peghole_mjx.geometry.specs import PRESETS, get_preset, with_changes
 from peghole_mjx.policies import PRETRAINED, load_policy
-from peghole_mjx.provenance import provenance, utc_now
+from peghole_mjx.sim.engines import ENGINES
 from peghole_mjx.training.evaluate import evaluate, params_sha256, requested_config
 
 #: the held-out geometry of each kind: spec fields changed from the training preset's, in mm.

@@ -41,7 +41,7 @@ import peghole_mjx  # noqa: F401  (sets the XLA CPU flag before JAX starts)
 from benchmarks.common import EVALS_RESULTS, cpu_label, out_file, parse_overrides, wilson
 from peghole_mjx import envs
 from peghole_mjx.envs.rollout import rollout, scripted_policy
-from peghole_mjx.provenance import provenance
+from peghole_mjx.files.provenance import provenance
 
 CAUSES = ("jam", "timeout", "nan", "overflow")
 

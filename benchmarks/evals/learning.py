@@ -70,16 +70,16 @@ from tqdm import tqdm
 
 from benchmarks.common import parse_overrides, write_rows
 from benchmarks.evals import learning_stacks as stacks
-from peghole_mjx import fileio
-from peghole_mjx.envs.engines import engine_label, engine_overrides
+from peghole_mjx.core.errors import UserInputError
+from peghole_mjx.core.validation import dumps
 from peghole_mjx.envs.reward import REWARD_KINDS
-from peghole_mjx.errors import UserInputError
-from peghole_mjx.provenance import run_provenance
+from peghole_mjx.files import fileio
+from peghole_mjx.files.provenance import run_provenance
+from peghole_mjx.sim.engines import engine_label, engine_overrides
 from peghole_mjx.training.config import TrainConfig, load_train_config
 from peghole_mjx.training.evaluate import evaluate
 from peghole_mjx.training.logs import read_metrics
 from peghole_mjx.training.run import TrainingRun
-from peghole_mjx.validation import dumps
 
 TASKS = ("RectExtract", "RectExtractHard", "DualExtract", "DualExtractHard")
 SEEDS = (100, 101, 102, 103, 104)

@@ -54,15 +54,16 @@ from benchmarks.baselines.pybullet_peghole import (
 )
 from benchmarks.baselines.seed_stack import SAC_SETTINGS
 from benchmarks.common import parse_overrides, versions_dict, write_rows
-from peghole_mjx import envs, fileio
+from peghole_mjx import envs
+from peghole_mjx.core.errors import UserInputError
+from peghole_mjx.core.validation import dumps
 from peghole_mjx.envs.config import apply_overrides
-from peghole_mjx.envs.engines import engine_label, engine_overrides
 from peghole_mjx.envs.rollout import rollout, scripted_policy
-from peghole_mjx.errors import UserInputError
+from peghole_mjx.files import fileio
+from peghole_mjx.files.provenance import run_provenance
 from peghole_mjx.gym import PegHoleGymEnv
-from peghole_mjx.provenance import run_provenance
+from peghole_mjx.sim.engines import engine_label, engine_overrides
 from peghole_mjx.training.config import env_setting, load_train_config, reward_discount
-from peghole_mjx.validation import dumps
 
 #: the stacks of the learning benchmark; ``ours`` runs in :mod:`benchmarks.evals.learning`
 STACKS = ("ours", "seed", "sb3")

@@ -38,7 +38,7 @@ from pathlib import Path
 import numpy as np
 
 from benchmarks.common import EVALS_RESULTS, ROOT, fmt_num, out_file, rel, table
-from peghole_mjx.provenance import utc_now
+from peghole_mjx.files.provenance import utc_now
 from peghole_mjx.training.evaluate import force_reduction_pct
 
 COLUMNS = ("success", "extraction_time_s", "mean_fz_N", "peak_fz_N", "mean_fxy_N")

@@ -44,7 +44,7 @@ import numpy as np
 from scipy import stats
 
 from benchmarks.common import EVALS_RESULTS, device_label, rel, table, utc_now, versions_dict
-from peghole_mjx.errors import UserInputError
+from peghole_mjx.core.errors import UserInputError
 from peghole_mjx.training.plots import (
     plot_curves,
     plot_final_evals,

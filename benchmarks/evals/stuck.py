@@ -52,13 +52,13 @@ from benchmarks.common import (
 )
 from benchmarks.evals.cross_engine import paired_difference
 from benchmarks.evals.hard_variants import summarise
-from peghole_mjx import fileio
-from peghole_mjx.envs.engines import ENGINES
+from peghole_mjx.core.validation import arg
 from peghole_mjx.envs.metrics import stuck_summary
+from peghole_mjx.files import fileio
+from peghole_mjx.files.provenance import provenance
 from peghole_mjx.policies import PRETRAINED, load_policy
-from peghole_mjx.provenance import provenance
+from peghole_mjx.sim.engines import ENGINES
 from peghole_mjx.training.evaluate import evaluate, requested_config
-from peghole_mjx.validation import arg
 
 METHODS = ("policy", "scripted")
 #: the breakaway range is split into this many bins of equal width for the per-bin rows

@@ -27,9 +27,9 @@ from benchmarks.common import EVALS_RESULTS, ROOT, cpu_label, fmt_num, out_file,
 from peghole_mjx import envs
 from peghole_mjx.envs.rollout import rollout, scripted_policy
 from peghole_mjx.envs.task_make import make_builtin
+from peghole_mjx.files.provenance import provenance
 from peghole_mjx.geometry import task as tf
 from peghole_mjx.geometry.shapes import BUILTINS
-from peghole_mjx.provenance import provenance
 
 OUT = EVALS_RESULTS / f"task_builtins_{cpu_label()}.json"
 

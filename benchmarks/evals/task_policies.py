@@ -45,10 +45,10 @@ from benchmarks.evals.hard_variants import summarise
 from peghole_mjx import envs
 from peghole_mjx.envs.rollout import rollout, scripted_policy
 from peghole_mjx.envs.task_make import make_builtin
+from peghole_mjx.files.provenance import provenance
 from peghole_mjx.geometry import task as tf
 from peghole_mjx.geometry.shapes import BUILTINS
 from peghole_mjx.policies import load_policy
-from peghole_mjx.provenance import provenance
 from peghole_mjx.training.evaluate import evaluate
 from peghole_mjx.training.selection import choose_checkpoint
 
@@ -102,7 +102,7 @@ def scripted_probe(folder: Path, overrides: dict, episodes: int, seed: int) -> d
 def train(folder: Path, overrides: dict, run: Path) -> float:
     """Train (or finish) the shape's policy run; its training wall clock, s."""
     if not (run / "summary.json").is_file():
-        cmd = [sys.executable, "-m", "peghole_mjx.cli", "train"]
+        cmd = [sys.executable, "-m", "peghole_mjx.cli.main", "train"]
         if (run / "run.json").is_file():
             cmd += ["--resume", str(run)]
         else:

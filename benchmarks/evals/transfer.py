@@ -58,14 +58,14 @@ from benchmarks.common import (
 )
 from benchmarks.evals.cross_engine import paired_difference
 from benchmarks.evals.hard_variants import summarise
-from peghole_mjx import fileio
+from peghole_mjx.core.errors import UserInputError
+from peghole_mjx.core.validation import arg
 from peghole_mjx.envs.config import env_spec, geometry_text
-from peghole_mjx.envs.engines import ENGINES
-from peghole_mjx.errors import UserInputError
+from peghole_mjx.files import fileio
+from peghole_mjx.files.provenance import provenance, utc_now
 from peghole_mjx.policies import PRETRAINED, load_policy
-from peghole_mjx.provenance import provenance, utc_now
+from peghole_mjx.sim.engines import ENGINES
 from peghole_mjx.training.evaluate import evaluate, params_sha256, requested_config
-from peghole_mjx.validation import arg
 
 # ----------------------------------------------------------------------------- the figures
 #: an ATI Mini45 with the SI-145-5 calibration (145 N, 5 N m): resolution 1/16 N on Fx, Fy,

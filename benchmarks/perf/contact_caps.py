@@ -49,8 +49,8 @@ from benchmarks.common import PERF_RESULTS, out_file, versions_field, write_rows
 from benchmarks.perf.engines import scripted_action
 from peghole_mjx import envs
 from peghole_mjx.envs.contacts import ContactReplay, restart_done
+from peghole_mjx.files.provenance import provenance
 from peghole_mjx.geometry.mjcf import CONTACT_CAPS
-from peghole_mjx.provenance import provenance
 
 #: (scene, env, representation) measured
 SCENES = (
@@ -135,7 +135,7 @@ def count_c(env, policy: str, worlds: int, env_steps: int, seed: int = 0) -> dic
     engine (``env`` built with ``engine="mujoco"``).
 
     Each env step runs in the env with the engine's torque record on
-    (:attr:`~peghole_mjx.envs.engine_mujoco.MujocoEngine.ctrl_log`); its physics steps are then
+    (:attr:`~peghole_mjx.sim.engine_mujoco.MujocoEngine.ctrl_log`); its physics steps are then
     replayed world by world in one ``MjData``, from the step's start state
     (``env.engine.to_mjdata``) with the recorded torques and the world's friction scale, and
     the active contacts counted after every ``mj_step``. The replay is the env's own step: its

@@ -52,10 +52,10 @@ from benchmarks.perf.engines import gpu_kind
 from benchmarks.perf.roofline import GPU_BANDWIDTH, roofline_estimate, tree_bytes
 from benchmarks.perf.throughput import run_job
 from peghole_mjx import envs
-from peghole_mjx._mjx import mjx
+from peghole_mjx.core._mjx import mjx
+from peghole_mjx.files.provenance import provenance
 from peghole_mjx.geometry import mjcf
 from peghole_mjx.geometry.parts import DUAL_DEFAULT_REPRESENTATION, RECT_DEFAULT_REPRESENTATION
-from peghole_mjx.provenance import provenance
 
 #: (scene, env name, representation) measured
 VARIANTS = (

@@ -27,11 +27,11 @@ from mujoco import rollout
 from benchmarks.baselines.pybullet_peghole import PegHoleSim
 from benchmarks.common import SCENE_OVERRIDES, SCENES, cpu_device, max_rss_mb
 from peghole_mjx import envs
-from peghole_mjx.envs.engine_mujoco import available_threads
-from peghole_mjx.envs.engines import batch_reset, select_worlds
 from peghole_mjx.envs.iiwa_constants import HOLE_BODY
 from peghole_mjx.envs.rollout import SCRIPTED_SPEED_M_S, scripted_policy
-from peghole_mjx.provenance import device
+from peghole_mjx.files.provenance import device
+from peghole_mjx.sim.engine_mujoco import available_threads
+from peghole_mjx.sim.engines import batch_reset, select_worlds
 
 
 # ----------------------------------------------------------------------------- device
@@ -170,7 +170,7 @@ def record_starts(scene: str, starts: int, nstep: int, seed: int = 1) -> dict:
 
     The env is stepped as any caller steps it (``jit(vmap(env.step))`` from
     ``jit(vmap(env.reset))``) with the engine's torque record on
-    (:attr:`~peghole_mjx.envs.engine_mujoco.MujocoEngine.ctrl_log`). Returns ``control``
+    (:attr:`~peghole_mjx.sim.engine_mujoco.MujocoEngine.ctrl_log`). Returns ``control``
     ``(starts, nstep, nu)``; per start, for ``mujoco.rollout``: ``state`` (mjSTATE_FULLPHYSICS
     rows, written from the reset state by ``env.engine.to_mjdata``), ``warmstart``
     (``qacc_warmstart``) and ``models`` (copies of the engine's model with that start's hole

@@ -18,7 +18,7 @@ from benchmarks.common import PERF_RESULTS, out_file, table
 from peghole_mjx import envs
 from peghole_mjx.envs.cli import make_policy
 from peghole_mjx.envs.rollout import rollout
-from peghole_mjx.provenance import provenance
+from peghole_mjx.files.provenance import provenance
 
 OUT = PERF_RESULTS / "env_rollouts.json"
 

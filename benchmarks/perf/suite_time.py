@@ -4,7 +4,7 @@ text generated from it.
 The record is ``benchmarks/results/perf/suite_time_cpu-2core.json``. Each measurement in it
 carries its own device, versions, date, command, config and commit, and says where the figure
 was recorded; the file's top-level fields are those of the command that last wrote it
-(:func:`peghole_mjx.provenance.run_provenance`). The docs state these times only as
+(:func:`peghole_mjx.files.provenance.run_provenance`). The docs state these times only as
 :func:`texts` writes them: the block under "How long the suite takes" in
 ``docs/guide/development.md`` is generated (``python -m benchmarks.tables``), and every other
 page that states a suite, CI or demo time states one of :func:`texts`' strings
@@ -30,8 +30,8 @@ import time
 from pathlib import Path
 
 from benchmarks.common import PERF_RESULTS, rel, table
-from peghole_mjx import fileio
-from peghole_mjx.provenance import run_provenance
+from peghole_mjx.files import fileio
+from peghole_mjx.files.provenance import run_provenance
 
 #: the committed record
 RESULT = PERF_RESULTS / "suite_time_cpu-2core.json"
@@ -144,6 +144,7 @@ RECORDED: list[dict] = [
             (1493, "2026-12-03"),
             (2201, "2026-12-05"),
             (3008, "2026-12-05"),
+            (3237, "2026-12-05"),
         )
     ],
     {

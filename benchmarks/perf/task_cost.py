@@ -41,10 +41,11 @@ from benchmarks.common import (
 from benchmarks.perf.cost import cost_variant, measure_env, without_persistent_cache
 from benchmarks.perf.engines import gpu_kind
 from benchmarks.perf.roofline import GPU_BANDWIDTH
-from peghole_mjx import envs, fileio
+from peghole_mjx import envs
+from peghole_mjx.files import fileio
+from peghole_mjx.files.provenance import provenance, utc_now
 from peghole_mjx.geometry import task as tf
 from peghole_mjx.geometry.parts import DUAL_DEFAULT_REPRESENTATION, RECT_DEFAULT_REPRESENTATION
-from peghole_mjx.provenance import provenance, utc_now
 
 #: the committed task-cost measurement (2-core CPU) that the docs table reads
 TASK_COST_JSON = PERF_RESULTS / "task_cost_cpu-2core.json"
@@ -71,7 +72,7 @@ _FIGURES = (
 
 def folder_digest(folder: str | Path) -> str:
     """The SHA-256 of a task folder's ``manifest.json`` (the folder checked first: a folder
-    that is not a complete task is a one-line :class:`~peghole_mjx.errors.UserInputError`)."""
+    that is not a complete task is a one-line :class:`~peghole_mjx.core.errors.UserInputError`)."""
     folder = Path(folder)
     tf.read_manifest(folder)
     return fileio.sha256_file(folder / tf.MANIFEST)

@@ -15,7 +15,7 @@ dual-2) scenes, with the iiwa and the impedance law, for these engines:
     the same with ``impl="warp"`` (MuJoCo Warp); CUDA GPU only, skipped with a message
     otherwise.
 ``mujoco`` / ``mujoco-1t``
-    the env on its ``mujoco`` engine (``peghole_mjx/envs/engine_mujoco.py``: MuJoCo C through
+    the env on its ``mujoco`` engine (``peghole_mjx/sim/engine_mujoco.py``: MuJoCo C through
     ``mujoco.batch`` on all threads / one thread, the NumPy impedance law over all worlds at
     every physics step), through the same jitted, scanned ``vmap(env.step)`` as ``mjx-jax``.
 ``batch-ceiling``
@@ -107,7 +107,7 @@ from benchmarks.perf.engines import (
     run_rollout,
 )
 from benchmarks.perf.roofline import print_roofline, roofline
-from peghole_mjx._mjx import WARP_AVAILABLE
+from peghole_mjx.core._mjx import WARP_AVAILABLE
 
 #: this module, as run: ``python -m benchmarks.perf.throughput``
 MODULE = "benchmarks.perf.throughput"

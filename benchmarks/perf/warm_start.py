@@ -36,7 +36,7 @@ import time
 from pathlib import Path
 
 from benchmarks.common import PERF_RESULTS, cpu_label, load_average, out_file, rel, table
-from peghole_mjx.provenance import provenance
+from peghole_mjx.files.provenance import provenance
 
 #: the output that marks the first rollout batch as started: its progress bar (the compile
 #: phase's label before it reads "... of the policy rollout (first run only ...)")

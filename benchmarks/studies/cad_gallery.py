@@ -29,17 +29,18 @@ import manifold3d
 import numpy as np
 import trimesh
 
-from peghole_mjx import fileio, runtime
-from peghole_mjx import progress as prog
+from peghole_mjx.core import progress as prog
+from peghole_mjx.core import runtime
+from peghole_mjx.core.errors import UserInputError
+from peghole_mjx.core.validation import dumps, loads
 from peghole_mjx.envs import rollout
 from peghole_mjx.envs.mesh_extract import MeshExtract, default_config
 from peghole_mjx.envs.task_make import make_task
-from peghole_mjx.errors import UserInputError
+from peghole_mjx.files import fileio
+from peghole_mjx.files.provenance import run_provenance
 from peghole_mjx.geometry import task as tf
 from peghole_mjx.geometry.extrusion import mesh_free_travel_mm
 from peghole_mjx.geometry.shapes import offset_convex
-from peghole_mjx.provenance import run_provenance
-from peghole_mjx.validation import dumps, loads
 
 COLUMNS = (
     "part",

@@ -48,15 +48,15 @@ import mujoco
 import numpy as np
 
 from benchmarks.common import EVALS_RESULTS, ROOT, STUDIES_RESULTS, wilson
-from peghole_mjx._mjx import mjx
 from peghole_mjx.analysis import dual, oracle
+from peghole_mjx.core._mjx import mjx
 from peghole_mjx.envs import load
 from peghole_mjx.envs.rollout import episode_keys, rollout, scripted_policy
+from peghole_mjx.files.provenance import provenance
 from peghole_mjx.geometry.mjcf import SimOptions, block_top_z, build_scene
 from peghole_mjx.geometry.parts import peg_tip_z_m
 from peghole_mjx.geometry.specs import MM, PRESETS
 from peghole_mjx.policies import load_policy
-from peghole_mjx.provenance import provenance
 
 MESH_EPISODES = EVALS_RESULTS / "dual_ffdeploy_cpu-2core" / "episodes1024.csv"
 #: pull speeds of ``jam_envs_friction`` (mm/s): the jam's own, and the scripted method's 20

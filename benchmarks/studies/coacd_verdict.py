@@ -8,7 +8,7 @@ The pair: a 10 x 10 x 25 mm square peg in a blind square hole 0.25 mm larger all
 mouth is chamfered 2 mm, in a 30 x 30 x 20 mm block (not an extrusion, not a revolution:
 CoACD), as exported coarse (12 / 36 faces) and as a fine export (each face split in four
 until the peg has at least 3,000 and the hole 9,000 faces). Each case runs the ``peghole``
-program in a process of its own (``python -m peghole_mjx.cli task make ...``) and reads its
+program in a process of its own (``python -m peghole_mjx.cli.main task make ...``) and reads its
 standard error as it comes: the verdict is the first line that refuses (``error:``) or the
 first line of the full run's bar (``parts searched / estimated``), timed from the process's
 start. A case that runs on past its verdict is stopped at ``--max-s``. Resumable: each
@@ -30,10 +30,10 @@ import numpy as np
 import trimesh
 
 from benchmarks.common import write_rows
-from peghole_mjx import fileio
-from peghole_mjx import progress as prog
-from peghole_mjx.provenance import run_provenance
-from peghole_mjx.validation import dumps, loads
+from peghole_mjx.core import progress as prog
+from peghole_mjx.core.validation import dumps, loads
+from peghole_mjx.files import fileio
+from peghole_mjx.files.provenance import run_provenance
 
 COLUMNS = (
     "case",
@@ -88,7 +88,7 @@ def run_case(name: str, tmp: Path, max_s: float) -> dict:
     folder.mkdir(parents=True)
     peg.export(folder / "peg.stl")
     hole.export(folder / "hole.stl")
-    argv = [sys.executable, "-m", "peghole_mjx.cli", "task", "make"]
+    argv = [sys.executable, "-m", "peghole_mjx.cli.main", "task", "make"]
     argv += [str(folder / "peg.stl"), str(folder / "hole.stl"), "--out", str(folder / "task")]
     t0 = time.perf_counter()
     proc = subprocess.Popen([*argv, *extra], stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)

@@ -42,11 +42,11 @@ from tqdm import tqdm
 
 from benchmarks.common import STUDIES_RESULTS, out_file
 from benchmarks.studies.c_replica import pull_c
-from peghole_mjx._mjx import mjx
+from peghole_mjx.core._mjx import mjx
 from peghole_mjx.experiments import compliance as cx
 from peghole_mjx.experiments import contact_check as cc
+from peghole_mjx.files.provenance import provenance
 from peghole_mjx.geometry.mjcf import SimOptions
-from peghole_mjx.provenance import provenance
 
 #: name -> (step s, friction time constant s or None, representation, contact time constant)
 VARIANTS = {

@@ -34,10 +34,10 @@ from tqdm import tqdm
 
 from benchmarks.common import STUDIES_RESULTS, cpu_label, rel, table
 from peghole_mjx import envs
-from peghole_mjx._mjx import mjx
-from peghole_mjx.envs.engine_mujoco import STATE_SPEC
+from peghole_mjx.core._mjx import mjx
 from peghole_mjx.envs.rollout import scripted_policy
-from peghole_mjx.provenance import provenance
+from peghole_mjx.files.provenance import provenance
+from peghole_mjx.sim.engine_mujoco import STATE_SPEC
 
 PRECISIONS = ("float32", "float64")
 

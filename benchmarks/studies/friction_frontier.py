@@ -70,9 +70,9 @@ from benchmarks.studies.pull_speed import (
 )
 from peghole_mjx.experiments import compliance as cx
 from peghole_mjx.experiments import sweep as sw
-from peghole_mjx.fileio import write_text
+from peghole_mjx.files.fileio import write_text
+from peghole_mjx.files.provenance import provenance
 from peghole_mjx.geometry.specs import MM
-from peghole_mjx.provenance import provenance
 
 #: name -> (frictional rows' time constant s, None: as stiff as the normal row; mjOption
 #: fields set on the model; which engines have the option)

@@ -10,7 +10,7 @@ peg, the sweep's first two repeats) in MJX under variants that change one suspec
   variant cancels it (``ExperimentConfig.compensate_joint_damping``);
 * ``float64``: float32 rounding;
 * ``cone fix``: MJX's elliptic-cone Newton Hessian with its clamp removed
-  (:mod:`peghole_mjx.mjx_fixes`), against NaN worlds;
+  (:mod:`peghole_mjx.sim.mjx_fixes`), against NaN worlds;
 * ``step``: 1 ms against 0.5 ms;
 * ``speed``: 20 mm/s against 5 mm/s (the oracle is quasi-static: a slower pull tests whether
   the arm's dynamics decide the force);
@@ -50,9 +50,9 @@ from benchmarks.common import STUDIES_RESULTS, out_file, table
 from benchmarks.studies.c_replica import EXPERIMENT
 from peghole_mjx.experiments import compliance as cx
 from peghole_mjx.experiments import sweep as sw
-from peghole_mjx.fileio import write_text
+from peghole_mjx.files.fileio import write_text
+from peghole_mjx.files.provenance import provenance
 from peghole_mjx.geometry.mjcf import SimOptions
-from peghole_mjx.provenance import provenance
 
 RESULTS = STUDIES_RESULTS
 PRESET = "rect-2"
@@ -73,7 +73,7 @@ class Variant(NamedTuple):
     """One suspect changed: the law, the solver, the precision, the step, the pull speed."""
 
     compensate: bool = True  # the law cancels the arm's joint damping
-    cone_fix: bool = True  # MJX's elliptic-cone Hessian fixed (peghole_mjx/mjx_fixes.py)
+    cone_fix: bool = True  # MJX's elliptic-cone Hessian fixed (peghole_mjx/sim/mjx_fixes.py)
     x64: bool = False
     timestep_s: float = 0.001
     speed_m_s: float = 0.02

@@ -33,10 +33,10 @@ from tqdm import tqdm
 import peghole_mjx  # noqa: F401  (sets the XLA CPU flag before JAX starts)
 from benchmarks.common import STUDIES_RESULTS, cpu_label, out_file
 from benchmarks.evals.hard_variants import failure_causes
+from peghole_mjx.core.errors import UserInputError
 from peghole_mjx.envs.rollout import episode_keys
-from peghole_mjx.errors import UserInputError
+from peghole_mjx.files.provenance import provenance
 from peghole_mjx.policies import load_policy
-from peghole_mjx.provenance import provenance
 
 #: the per-step quantities traced (all per world); ``ff`` is the accumulated feed-forward
 #: force (N, hole frame), ``offset_mm`` the commanded tip's lateral distance from its start

@@ -84,9 +84,9 @@ from benchmarks.studies.c_replica import COLUMNS, ENGINE, EXPERIMENT, pull_c
 from benchmarks.studies.low_stiffness_check import per_world_text
 from peghole_mjx.experiments import compliance as cx
 from peghole_mjx.experiments import sweep as sw
-from peghole_mjx.fileio import write_text
+from peghole_mjx.files.fileio import write_text
+from peghole_mjx.files.provenance import provenance
 from peghole_mjx.geometry.specs import MM, PRESETS
-from peghole_mjx.provenance import provenance
 
 MU = 0.266
 

@@ -51,8 +51,8 @@ from benchmarks.evals.experiments import ordered
 from benchmarks.studies.pull_speed import oracle_late_peaks
 from peghole_mjx.control.limits import LIMITS
 from peghole_mjx.experiments import sweep as sw
-from peghole_mjx.fileio import write_text
-from peghole_mjx.provenance import provenance
+from peghole_mjx.files.fileio import write_text
+from peghole_mjx.files.provenance import provenance
 
 GRID = sw.GRIDS["dual"]["full"]
 SEED = 0

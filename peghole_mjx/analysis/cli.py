@@ -1,13 +1,13 @@
 """``peghole analyze``: figures, claims and jamming diagrams of the quasi-static model.
 
 The parser; the commands are in :mod:`peghole_mjx.analysis.commands`, imported when one runs
-(:mod:`peghole_mjx.lazy`: ``peghole --help`` does not import matplotlib's pyplot, 1 s on the
+(:mod:`peghole_mjx.core.lazy`: ``peghole --help`` does not import matplotlib's pyplot, 1 s on the
 2-core CPU, 2026-12-02)."""
 
 from __future__ import annotations
 
-from peghole_mjx.lazy import command
-from peghole_mjx.validation import arg, finite_float
+from peghole_mjx.core.lazy import command
+from peghole_mjx.core.validation import arg, finite_float
 
 
 def add_parser(subparsers) -> None:

@@ -11,12 +11,12 @@ import matplotlib
 matplotlib.use("Agg")  # figures are written to files, also without a display
 import matplotlib.pyplot as plt
 
-from peghole_mjx import fileio
 from peghole_mjx.analysis import claims, dual, figures, jamming, rect
-from peghole_mjx.errors import UserInputError
+from peghole_mjx.core.errors import UserInputError
+from peghole_mjx.core.validation import dumps
+from peghole_mjx.files import fileio
+from peghole_mjx.files.lock import command_parameters, writing_files
 from peghole_mjx.geometry.specs import get_preset
-from peghole_mjx.lock import command_parameters, writing_files
-from peghole_mjx.validation import dumps
 
 #: upper estimates of what ``analyze`` writes, checked against the free disk before the work:
 #: a figure family's CSV and PNG (the largest, 3.28-3.42, writes 0.55 MB), jamming.png + .json

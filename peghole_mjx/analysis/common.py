@@ -23,7 +23,7 @@ import math
 
 import numpy as np
 
-from peghole_mjx.errors import UserInputError
+from peghole_mjx.core.errors import UserInputError
 
 #: Erratum E3: the thesis's initial angle "-0.9 rad" is read as -0.9 degrees.
 THETA0_DEG = -0.9

@@ -32,7 +32,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from peghole_mjx.analysis import common, oracle, planar
-from peghole_mjx.errors import UserInputError
+from peghole_mjx.core.errors import UserInputError
 from peghole_mjx.geometry.specs import (
     DualSpec,
     InfeasibleGeometryError,

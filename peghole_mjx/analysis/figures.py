@@ -18,9 +18,9 @@ import matplotlib
 import matplotlib.pyplot as plt
 import numpy as np
 
-from peghole_mjx import fileio
 from peghole_mjx.analysis import common, dual, rect
-from peghole_mjx.errors import UserInputError
+from peghole_mjx.core.errors import UserInputError
+from peghole_mjx.files import fileio
 from peghole_mjx.geometry.specs import get_preset
 
 DEG = math.pi / 180.0

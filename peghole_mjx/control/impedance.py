@@ -47,9 +47,9 @@ import jax.numpy as jnp
 import mujoco
 import numpy as np
 
-from peghole_mjx._mjx import mjx
 from peghole_mjx.control.kinematics import full_inertia, point_jacobian, rotvec_from_mat
 from peghole_mjx.control.limits import GAINS, LIMITS, ControlLimits
+from peghole_mjx.core._mjx import mjx
 from peghole_mjx.geometry.mjcf import ACTUATORS, JOINTS
 
 

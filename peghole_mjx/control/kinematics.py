@@ -2,7 +2,7 @@
 
 One place for the rotation conventions (rotation vector = axis x angle, rad) and for the one
 use of MJX's private ``mujoco.mjx._src.support`` module (point Jacobian, full inertia
-matrix; imported through :mod:`peghole_mjx._mjx`).
+matrix; imported through :mod:`peghole_mjx.core._mjx`).
 """
 
 from __future__ import annotations
@@ -13,7 +13,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from peghole_mjx._mjx import mjx, support
+from peghole_mjx.core._mjx import mjx, support
 
 
 def rotvec_from_mat(R: jax.Array) -> jax.Array:

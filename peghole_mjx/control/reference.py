@@ -9,7 +9,7 @@ computes (``mj_jac``, ``mj_fullM``, ``qfrc_bias``). The MuJoCo C and PyBullet ba
 ``tests/test_control.py`` checks it against the JAX law on random states.
 :func:`impedance_torque_c` gathers those arrays from an ``MjData``.
 
-The rotation helpers are :mod:`peghole_mjx.rotations`' (re-exported here), the NumPy
+The rotation helpers are :mod:`peghole_mjx.core.rotations`' (re-exported here), the NumPy
 twins of :mod:`peghole_mjx.control.kinematics` (rotation vector = axis x angle, rad).
 """
 
@@ -20,7 +20,7 @@ from collections.abc import Sequence
 import mujoco
 import numpy as np
 
-from peghole_mjx.rotations import rot_from_rotvec, rotvec_from_mat
+from peghole_mjx.core.rotations import rot_from_rotvec, rotvec_from_mat
 
 __all__ = [
     "impedance_torque",
@@ -108,7 +108,7 @@ def impedance_torque(
 
     Every argument may carry the same leading batch dimensions (one world each: ``J`` (..., 6,
     n), ``damping_ratio`` (...,), ``null_gains`` (..., 2)); the MuJoCo C engine
-    (:mod:`peghole_mjx.envs.engine_mujoco`) calls it once per physics step over all worlds.
+    (:mod:`peghole_mjx.sim.engine_mujoco`) calls it once per physics step over all worlds.
     """
     Rc = np.asarray(target_mat)
     RcT = _t(Rc)

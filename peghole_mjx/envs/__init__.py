@@ -13,10 +13,10 @@ from collections.abc import Callable
 
 from ml_collections import config_dict
 
+from peghole_mjx.core.errors import UserInputError
 from peghole_mjx.envs import dual_extract, mesh_extract, rect_extract
 from peghole_mjx.envs.base import State
 from peghole_mjx.envs.extraction import PegHoleEnv
-from peghole_mjx.errors import UserInputError
 from peghole_mjx.geometry.specs import get_preset
 
 _envs: dict[str, type[PegHoleEnv]] = {

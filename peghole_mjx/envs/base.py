@@ -20,14 +20,18 @@ import numpy as np
 from flax import struct
 from ml_collections import config_dict
 
-from peghole_mjx._mjx import WARP_AVAILABLE, mjx
 from peghole_mjx.control import ControlLimits, ImpedanceController
 from peghole_mjx.control.kinematics import rotvec_from_mat
+from peghole_mjx.core._mjx import WARP_AVAILABLE, mjx
+from peghole_mjx.core.errors import UserInputError
 from peghole_mjx.envs import iiwa_constants as names
 from peghole_mjx.envs import stuck
 from peghole_mjx.envs.config import apply_overrides, base_config, env_spec, sim_options
-from peghole_mjx.envs.engine_mujoco import MujocoEngine
-from peghole_mjx.envs.engines import (
+from peghole_mjx.geometry.mjcf import TOOL_DOWN_MAT, build_scene
+from peghole_mjx.geometry.parts import resolve_representation
+from peghole_mjx.geometry.specs import MM, PegHoleSpec
+from peghole_mjx.sim.engine_mujoco import MujocoEngine
+from peghole_mjx.sim.engines import (
     ENGINES,
     FTReading,
     MjxEngine,
@@ -35,11 +39,7 @@ from peghole_mjx.envs.engines import (
     SceneIds,
     resolve_engine,
 )
-from peghole_mjx.envs.engines import contact_overflow as contact_overflow
-from peghole_mjx.errors import UserInputError
-from peghole_mjx.geometry.mjcf import TOOL_DOWN_MAT, build_scene
-from peghole_mjx.geometry.parts import resolve_representation
-from peghole_mjx.geometry.specs import MM, PegHoleSpec
+from peghole_mjx.sim.engines import contact_overflow as contact_overflow
 
 __all__ = ["PegHoleBase", "State", "base_config", "contact_overflow"]
 

@@ -7,20 +7,21 @@ import json
 import sys
 from pathlib import Path
 
-from peghole_mjx import envs, fileio, policies
-from peghole_mjx import progress as prog
+from peghole_mjx import envs, policies
+from peghole_mjx.core import progress as prog
+from peghole_mjx.core.errors import UserInputError
+from peghole_mjx.core.validation import arg, dumps, key_value
 from peghole_mjx.envs import contacts as contacts_mod
 from peghole_mjx.envs import rollout as rollout_mod
-from peghole_mjx.envs.engines import CLI_ENGINES, engine_label, engine_overrides
 from peghole_mjx.envs.mesh_extract import absolute_task
-from peghole_mjx.errors import UserInputError
+from peghole_mjx.files import fileio
 from peghole_mjx.geometry.specs import get_preset
+from peghole_mjx.sim.engines import CLI_ENGINES, engine_label, engine_overrides
 from peghole_mjx.training.evaluate import (
     check_requested_env,
     config_differences,
     requested_config,
 )
-from peghole_mjx.validation import arg, dumps, key_value
 
 #: ``--policy`` of the envs subcommands
 POLICY_HELP = (

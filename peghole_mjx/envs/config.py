@@ -8,9 +8,9 @@ REWARD_WEIGHTS`), the simulator step (:class:`~peghole_mjx.geometry.mjcf.SimOpti
 
 Every config is checked when it is built (:func:`apply_overrides`), before any model is built
 or compiled: each entry's type (switches, text, numbers), each number against its range in
-:data:`peghole_mjx.validation.RANGES` (``"env." + key``, the one table of allowed ranges), and
+:data:`peghole_mjx.core.validation.RANGES` (``"env." + key``, the one table of allowed ranges), and
 the relations between entries (time steps, bounds, the contact cap). A refusal is one
-:class:`~peghole_mjx.errors.UserInputError` line naming the entry.
+:class:`~peghole_mjx.core.errors.UserInputError` line naming the entry.
 """
 
 from __future__ import annotations
@@ -23,18 +23,18 @@ import math
 from ml_collections import config_dict
 
 from peghole_mjx.control import GAINS, LIMITS
+from peghole_mjx.core.errors import InfeasibleGeometryError, UserInputError
+from peghole_mjx.core.validation import CONTACT_CAP_FACTOR, RANGES, _num, check_finite_tree
 from peghole_mjx.envs.reward import (
     OUTCOME_WEIGHTS,
     REWARD_KINDS,
     REWARD_WEIGHTS,
     outcome_ordering_problem,
 )
-from peghole_mjx.errors import InfeasibleGeometryError, UserInputError
 from peghole_mjx.geometry.mjcf import SimOptions, contact_cap_entry, contact_cap_for
 from peghole_mjx.geometry.parts import resolve_representation
 from peghole_mjx.geometry.specs import MM, PegHoleSpec, get_preset, with_changes
 from peghole_mjx.geometry.task import TaskSpec, load_task
-from peghole_mjx.validation import CONTACT_CAP_FACTOR, RANGES, _num, check_finite_tree
 
 
 def base_config(preset: str) -> config_dict.ConfigDict:
@@ -48,10 +48,10 @@ def base_config(preset: str) -> config_dict.ConfigDict:
         # preset spec's fields to change, in mm, e.g. '{"peg_w_mm": 49.9, "hole_w_mm": 50.1}'
         # (geometry/specs.py RectSpec, DualSpec; checked by specs.validate). "": the preset's
         geometry="",
-        # the physics engine (envs/engines.py): "auto" (default_engine: MuJoCo C without a GPU,
+        # the physics engine (sim/engines.py): "auto" (default_engine: MuJoCo C without a GPU,
         # MJX-Warp on a CUDA GPU with warp-lang, else MJX-JAX; the built env's config holds the
         # one chosen), "mjx" (MuJoCo MJX, CPU or GPU) or "mujoco" (MuJoCo C through
-        # mujoco.batch on a CPU thread pool, envs/engine_mujoco.py). Provenance, not the task
+        # mujoco.batch on a CPU thread pool, sim/engine_mujoco.py). Provenance, not the task
         engine="auto",
         impl="jax",  # engine mjx: MJX's implementation, "jax" (CPU, GPU) or "warp" (CUDA, or CPU)
         mujoco_threads=0,  # engine mujoco: threads of its pool; 0 = every CPU of the process
@@ -457,7 +457,7 @@ def _range_problem(rng, value) -> str | None:
 
 def check_config_values(config: config_dict.ConfigDict) -> None:
     """Every entry of the env config has its type, and every number is finite and in its
-    range (:data:`peghole_mjx.validation.RANGES`, ``env.<key>``): checked before any model is
+    range (:data:`peghole_mjx.core.validation.RANGES`, ``env.<key>``): checked before any model is
     built or compiled, naming the entry."""
     check_finite_tree(config.to_dict(), "env config")
 

@@ -42,13 +42,13 @@ import matplotlib.pyplot as plt
 import mujoco
 import numpy as np
 
-from peghole_mjx import fileio
-from peghole_mjx import progress as prog
+from peghole_mjx.core import progress as prog
 from peghole_mjx.envs import iiwa_constants as names
-from peghole_mjx.envs.engine_mujoco import STATE_SPEC
-from peghole_mjx.envs.engines import batch_reset, select_worlds
 from peghole_mjx.envs.extraction import PegHoleEnv
+from peghole_mjx.files import fileio
 from peghole_mjx.geometry.specs import MM
+from peghole_mjx.sim.engine_mujoco import STATE_SPEC
+from peghole_mjx.sim.engines import batch_reset, select_worlds
 
 #: the columns of :attr:`ContactTrace.rows` (one row per active peg-hole contact and env step)
 COLUMNS = ("step", "time_s", "x_mm", "y_mm", "z_mm", "nx", "ny", "nz", "normal_N", "hole_geom")

@@ -52,10 +52,10 @@ from ml_collections import config_dict
 
 from peghole_mjx.control import ImpedanceParams, make_params
 from peghole_mjx.control.kinematics import newton_ik, rot_z
+from peghole_mjx.core.errors import UserInputError
 from peghole_mjx.envs import iiwa_constants as names
 from peghole_mjx.envs import stuck
 from peghole_mjx.envs.base import PegHoleBase, State
-from peghole_mjx.envs.engines import world_where
 from peghole_mjx.envs.metrics import STUCK_METRICS, zero_metrics
 from peghole_mjx.envs.randomization import (
     breakaway_draw,
@@ -67,9 +67,9 @@ from peghole_mjx.envs.randomization import (
     tool_error_on,
 )
 from peghole_mjx.envs.reward import outcome_terms, reward_terms
-from peghole_mjx.errors import UserInputError
 from peghole_mjx.geometry.mjcf import TOOL_DOWN_MAT
 from peghole_mjx.geometry.specs import MM
+from peghole_mjx.sim.engines import world_where
 
 
 def clean_action(action: jax.Array) -> jax.Array:

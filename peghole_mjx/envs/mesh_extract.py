@@ -20,9 +20,9 @@ from pathlib import Path
 
 from ml_collections import config_dict
 
+from peghole_mjx.core.errors import UserInputError
 from peghole_mjx.envs.config import apply_overrides, base_config, env_spec
 from peghole_mjx.envs.extraction import PegHoleEnv
-from peghole_mjx.errors import UserInputError
 from peghole_mjx.geometry.task import MJX_MAX_FACE_VERTICES
 
 

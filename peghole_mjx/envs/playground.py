@@ -13,7 +13,7 @@ Two randomisations then compose. The env's own per-episode draw
 (:func:`peghole_mjx.envs.randomization.randomization_fn`: hole pose, commanded error,
 friction scale, k_xy) runs inside ``reset`` for every world; Playground's hook varies fields of
 the compiled model per world, and the MJX engine steps with the env's current ``_mjx_model``
-(:class:`peghole_mjx.envs.engines.MjxEngine` reads it at every trace), so every field a hook
+(:class:`peghole_mjx.sim.engines.MjxEngine` reads it at every trace), so every field a hook
 varies (``dof_damping``, ``body_mass``, ``pair_friction``, ...) reaches the physics
 (``tests/test_model_swap.py``). A hook's ``pair_friction`` is multiplied by the env's own
 friction-scale draw at every step. The scene's contacts are explicit ``<pair>`` elements: a hook on
@@ -21,7 +21,7 @@ friction-scale draw at every step. The scene's contacts are explicit ``<pair>`` 
 ``mjx.Model``: Playground's hooks need ``engine=mjx``.
 
 :func:`load` builds an env for Playground with the package's one default, engine ``auto``
-(issue 51, 2026-12-05), with one difference: where ``auto`` stands for MuJoCo C (a machine
+(2026-12-05), with one difference: where ``auto`` stands for MuJoCo C (a machine
 without a GPU) it picks ``mjx`` (MJX-JAX) instead, because Playground's whole point is an
 ``mjx.Model`` its hooks vary per world; on a CUDA GPU ``auto`` is MJX-Warp or MJX-JAX as for
 every env. An engine named in the overrides is kept.
@@ -38,9 +38,9 @@ import jax
 import jax.numpy as jnp
 
 from peghole_mjx import envs
-from peghole_mjx._mjx import mjx
-from peghole_mjx._optional import optional_import
-from peghole_mjx.envs.engines import default_engine, engine_overrides
+from peghole_mjx.core._mjx import mjx
+from peghole_mjx.core._optional import optional_import
+from peghole_mjx.sim.engines import default_engine, engine_overrides
 
 __all__ = ["joint_damping_randomization", "load", "playground_engine", "wrap_for_brax_training"]
 

@@ -26,10 +26,11 @@ import jax.numpy as jnp
 import numpy as np
 from tqdm import tqdm
 
-from peghole_mjx import envs, fileio, memory
-from peghole_mjx import progress as prog
+from peghole_mjx import envs
+from peghole_mjx.core import memory
+from peghole_mjx.core import progress as prog
+from peghole_mjx.core.errors import UserInputError
 from peghole_mjx.envs.config import leaves
-from peghole_mjx.envs.engines import batch_reset, select_worlds
 from peghole_mjx.envs.extraction import PegHoleEnv
 from peghole_mjx.envs.metrics import (
     STATS,
@@ -38,7 +39,8 @@ from peghole_mjx.envs.metrics import (
     summarize,
     zero_returns,
 )
-from peghole_mjx.errors import UserInputError
+from peghole_mjx.files import fileio
+from peghole_mjx.sim.engines import batch_reset, select_worlds
 
 Policy = Callable[[jax.Array, jax.Array], jax.Array]
 
@@ -210,7 +212,7 @@ def rollout(
 
     ``label`` names the progress bar (``policy rollout``, ``baseline rollout``); with
     ``progress`` the first chunk of a runner not compiled yet in this process is shown as
-    ``compiling the env step and policy of the <label>`` (:mod:`peghole_mjx.progress`).
+    ``compiling the env step and policy of the <label>`` (:mod:`peghole_mjx.core.progress`).
     """
     if not jax.config.jax_threefry_partitionable:
         raise RuntimeError("rollout needs jax_threefry_partitionable=True (prefix-stable keys)")

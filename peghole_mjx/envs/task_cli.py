@@ -13,11 +13,11 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
+from peghole_mjx.core.lazy import command
+from peghole_mjx.core.validation import arg
 from peghole_mjx.geometry import task as tf
 from peghole_mjx.geometry.cli import add_coacd_arguments
 from peghole_mjx.geometry.shapes import BUILTINS
-from peghole_mjx.lazy import command
-from peghole_mjx.validation import arg
 
 COMMANDS = "peghole_mjx.envs.task_commands"
 

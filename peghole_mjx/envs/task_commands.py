@@ -7,11 +7,11 @@ import argparse
 import sys
 from pathlib import Path
 
+from peghole_mjx.core.errors import UserInputError
+from peghole_mjx.core.validation import dumps
 from peghole_mjx.envs.task_make import ContactRun, TaskCaps, make_builtin, make_task
-from peghole_mjx.errors import UserInputError
 from peghole_mjx.geometry import task as tf
 from peghole_mjx.geometry.decompose import CoacdParams
-from peghole_mjx.validation import dumps
 
 
 def _caps_and_run(args: argparse.Namespace, vertices: int = tf.MAX_HULL_VERTICES):

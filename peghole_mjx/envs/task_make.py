@@ -8,10 +8,10 @@ NAME`` (the built-in parts of :mod:`peghole_mjx.geometry.shapes`, exact pieces) 
 pipeline, :func:`build_task`:
 
 1. the output folder checked (a new folder, or a task folder to replace that holds only the
-   program's files: :func:`peghole_mjx.fileio.check_replaceable`, made with the same
-   parameters unless ``force``: :func:`peghole_mjx.fileio.check_same_parameters`; no link
+   program's files: :func:`peghole_mjx.files.fileio.check_replaceable`, made with the same
+   parameters unless ``force``: :func:`peghole_mjx.files.fileio.check_same_parameters`; no link
    loop, a name that fits with the temporary names beside it) and its lock taken
-   (:class:`peghole_mjx.lock.OutputLock`: one writer per task folder) before any work;
+   (:class:`peghole_mjx.files.lock.OutputLock`: one writer per task folder) before any work;
 2. the meshes checked as a peg in its hole (:func:`~peghole_mjx.geometry.decompose.
    check_assembly`: sizes, two parts, the peg inside the hole, no overlap, no undercut along
    +z; :func:`~peghole_mjx.geometry.task_check.check_blind_hole`: a bottom under the peg)
@@ -27,7 +27,7 @@ pipeline, :func:`build_task`:
    (:func:`~peghole_mjx.envs.contacts.max_active_contacts`, as the presets' caps were
    measured); more than ``max_contacts`` is refused, the cap set above the maximum;
 6. the final files (with the cap) hashed into ``manifest.json`` and the temporary folder
-   renamed onto the output (:func:`peghole_mjx.fileio.replace_dir`).
+   renamed onto the output (:func:`peghole_mjx.files.fileio.replace_dir`).
 
 Any failure removes the temporary folder: nothing half-written is left.
 """
@@ -43,13 +43,17 @@ from dataclasses import asdict, dataclass
 from pathlib import Path
 from typing import Any
 
-from peghole_mjx import __version__, fileio
-from peghole_mjx import progress as prog
+from peghole_mjx import __version__
+from peghole_mjx.core import progress as prog
+from peghole_mjx.core.errors import UserInputError
+from peghole_mjx.core.validation import check, dumps
 from peghole_mjx.envs import rollout
 from peghole_mjx.envs.config import sim_options
 from peghole_mjx.envs.contacts import max_active_contacts
 from peghole_mjx.envs.mesh_extract import MeshExtract, default_config
-from peghole_mjx.errors import UserInputError
+from peghole_mjx.files import fileio
+from peghole_mjx.files.lock import OutputLock
+from peghole_mjx.files.provenance import provenance
 from peghole_mjx.geometry import coacd_budget
 from peghole_mjx.geometry import task as tf
 from peghole_mjx.geometry.decompose import (
@@ -64,9 +68,6 @@ from peghole_mjx.geometry.mjcf import build_scene
 from peghole_mjx.geometry.revolve import revolved_pair
 from peghole_mjx.geometry.shapes import builtin_parts
 from peghole_mjx.geometry.task_check import TaskGeometry, check_blind_hole, place_and_check
-from peghole_mjx.lock import OutputLock
-from peghole_mjx.provenance import provenance
-from peghole_mjx.validation import check, dumps
 
 #: the peg's density when no mass is given (kg/m^3; printed PLA, as ``models decompose``)
 PEG_DENSITY_KG_M3 = 1200.0

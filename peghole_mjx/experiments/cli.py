@@ -1,14 +1,14 @@
 """The parsers of ``peghole experiment compliance``, ``sweep`` and ``contact-check``; the
 commands are in :mod:`peghole_mjx.experiments.commands`, imported when one runs
-(:mod:`peghole_mjx.lazy`)."""
+(:mod:`peghole_mjx.core.lazy`)."""
 
 from __future__ import annotations
 
 import argparse
 from pathlib import Path
 
-from peghole_mjx.lazy import command
-from peghole_mjx.validation import arg
+from peghole_mjx.core.lazy import command
+from peghole_mjx.core.validation import arg
 
 COMMANDS = "peghole_mjx.experiments.commands"
 ENGINE_HELP = (
@@ -75,7 +75,7 @@ def add_parser(subparsers) -> None:
         "--fix-cone-hessian",
         action=argparse.BooleanOptionalAction,
         default=True,
-        help="fixed MJX elliptic-cone Newton Hessian (peghole_mjx/mjx_fixes.py; default on)",
+        help="fixed MJX elliptic-cone Newton Hessian (peghole_mjx/sim/mjx_fixes.py; default on)",
     )
     w.add_argument(
         "--speed-mm-s",

@@ -13,17 +13,17 @@ from pathlib import Path
 import jax
 import numpy as np
 
-from peghole_mjx import fileio
-from peghole_mjx.errors import CorruptFileError, UserInputError
+from peghole_mjx.core.errors import CorruptFileError, UserInputError
+from peghole_mjx.core.validation import load_json_object
 from peghole_mjx.experiments import compliance as cx
 from peghole_mjx.experiments import contact_check as cc
 from peghole_mjx.experiments import outputs, report, sweep
 from peghole_mjx.experiments.compliance import ExperimentConfig
+from peghole_mjx.files import fileio
+from peghole_mjx.files.lock import OutputLock
+from peghole_mjx.files.provenance import provenance
 from peghole_mjx.geometry.parts import resolve_representation
 from peghole_mjx.geometry.specs import PRESETS
-from peghole_mjx.lock import OutputLock
-from peghole_mjx.provenance import provenance
-from peghole_mjx.validation import load_json_object
 
 
 def run(args: argparse.Namespace) -> int:

@@ -53,17 +53,17 @@ import numpy as np
 from mujoco import mjx
 from scipy.signal import savgol_filter
 
-from peghole_mjx import progress as prog
-from peghole_mjx._mjx import default_engine
 from peghole_mjx.analysis import dual as an_dual
 from peghole_mjx.analysis import oracle
 from peghole_mjx.analysis import rect as an_rect
 from peghole_mjx.control import GAINS, ImpedanceController, Target, make_params, rot_y
 from peghole_mjx.control.reference import impedance_torque, rot_from_rotvec
-from peghole_mjx.errors import UserInputError
+from peghole_mjx.core import progress as prog
+from peghole_mjx.core.errors import UserInputError
 from peghole_mjx.geometry.mjcf import SimOptions, compile_scene
 from peghole_mjx.geometry.specs import MM, PRESETS
-from peghole_mjx.mjx_fixes import cone_hessian_fix
+from peghole_mjx.sim.engines import default_engine
+from peghole_mjx.sim.mjx_fixes import cone_hessian_fix
 
 #: thesis values to compare with (Sec 3.5, R1): reductions of the mean peak extraction force
 THESIS = {
@@ -184,7 +184,7 @@ class ExperimentConfig:
     #: rotational springs")
     compensate_joint_damping: bool = True
     #: trace the experiment with MJX's elliptic-cone Newton Hessian fixed
-    #: (:mod:`peghole_mjx.mjx_fixes`): the shipped one turned 13 of 48 worlds to NaN at
+    #: (:mod:`peghole_mjx.sim.mjx_fixes`): the shipped one turned 13 of 48 worlds to NaN at
     #: K_theta 3 N m/rad, the fixed one none
     fix_cone_hessian: bool = True
     #: rotational stiffness about the compliance frame's x and z axes (the axes other than the
@@ -268,10 +268,11 @@ ENGINE_CHOICES = ("auto", *ENGINES)
 
 
 def auto_engine(x64: bool = False) -> str:
-    """The engine ``auto`` stands for: the envs' rule (:func:`peghole_mjx._mjx.default_engine`,
-    issue 51, 2026-12-05), ``mujoco`` where JAX has no GPU, else ``mjx`` (the experiments have
-    no MuJoCo Warp path). ``x64`` (MJX's float64 asked for): ``mjx``, so that the commands of
-    the float64 results recorded before the default became ``auto`` still reproduce them."""
+    """The engine ``auto`` stands for: the envs' rule
+    (:func:`peghole_mjx.sim.engines.default_engine`, 2026-12-05), ``mujoco`` where JAX has no
+    GPU, else ``mjx`` (the experiments have no MuJoCo Warp path). ``x64`` (MJX's float64 asked
+    for): ``mjx``, so that the commands of the float64 results recorded before the default
+    became ``auto`` still reproduce them."""
     return "mjx" if x64 or default_engine() != "mujoco" else "mujoco"
 
 
@@ -989,7 +990,7 @@ def nan_cause(cfg: ExperimentConfig, x64: bool = False, k_rot_min: float | None 
     if not cfg.fix_cone_hessian:
         return (
             "MJX's elliptic-cone Newton Hessian as shipped (run without --no-fix-cone-hessian; "
-            "peghole_mjx/mjx_fixes.py)"
+            "peghole_mjx/sim/mjx_fixes.py)"
         )
     if not x64 and cfg.speed_m_s < 0.005:
         return f"float32 at a slow pull ({cfg.speed_m_s * 1e3:g} mm/s): run with --x64"

@@ -31,11 +31,11 @@ from dataclasses import dataclass
 import jax
 import numpy as np
 
-from peghole_mjx.errors import UserInputError
+from peghole_mjx.core.errors import UserInputError
+from peghole_mjx.core.validation import check
 from peghole_mjx.experiments import compliance as cx
 from peghole_mjx.geometry.mjcf import SimOptions
 from peghole_mjx.geometry.specs import MM, PRESETS
-from peghole_mjx.validation import check
 
 #: the standard tilted case (SI; angles in rad, thesis sign)
 STANDARD_CASE = {

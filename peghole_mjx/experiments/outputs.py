@@ -1,5 +1,6 @@
-"""The experiments' file output: every file written atomically (:mod:`peghole_mjx.fileio`), and a
-failed write (a full disk, a read-only folder) reported naming the file.
+"""The experiments' file output: every file written atomically
+(:mod:`peghole_mjx.files.fileio`), and a failed write (a full disk, a read-only folder) reported
+naming the file.
 
 A reader, or a sweep resumed after a kill, sees the old file or the complete new one; a failed
 write leaves no temporary file behind and the old file as it was.
@@ -14,8 +15,8 @@ from typing import Any
 
 import numpy as np
 
-from peghole_mjx import fileio
-from peghole_mjx.validation import dumps
+from peghole_mjx.core.validation import dumps
+from peghole_mjx.files import fileio
 
 
 @contextlib.contextmanager

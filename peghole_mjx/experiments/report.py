@@ -17,6 +17,7 @@ import matplotlib.pyplot as plt
 import mujoco
 import numpy as np
 
+from peghole_mjx.core.validation import reduction_pct
 from peghole_mjx.experiments import compliance as cx
 from peghole_mjx.experiments import outputs
 from peghole_mjx.experiments.compliance import (
@@ -30,7 +31,6 @@ from peghole_mjx.experiments.compliance import (
     two_point_interval,
 )
 from peghole_mjx.geometry.specs import PRESETS
-from peghole_mjx.validation import reduction_pct
 
 #: curves.csv and the plots: forces binned on depth (keeps curves.csv < 100 kB), mm
 DEPTH_BIN_MM = {"rect": 2.5, "dual": 1.0}
@@ -48,7 +48,7 @@ def _lc_key(L_C_m: float) -> str:
 
 def _reduction(a: float, b: float) -> float:
     """``100 (1 - a / b)`` of two peak forces, NaN (not resolved) when either is below
-    :data:`~peghole_mjx.validation.FORCE_FLOOR_N` (a percentage of 0.0004 N is noise)."""
+    :data:`~peghole_mjx.core.validation.FORCE_FLOOR_N` (a percentage of 0.0004 N is noise)."""
     pct = reduction_pct(a, b)
     return float("nan") if pct is None else round(pct, 2)
 

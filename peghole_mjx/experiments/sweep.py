@@ -42,14 +42,14 @@ import matplotlib.pyplot as plt
 import numpy as np
 from tqdm import tqdm
 
-from peghole_mjx import fileio
-from peghole_mjx.errors import UserInputError
+from peghole_mjx.core.errors import UserInputError
+from peghole_mjx.core.validation import RANGES, _num
 from peghole_mjx.experiments import compliance as cx
 from peghole_mjx.experiments import outputs
+from peghole_mjx.files import fileio
+from peghole_mjx.files.lock import OutputLock, _alive, _proc_start
+from peghole_mjx.files.provenance import provenance
 from peghole_mjx.geometry.specs import MM, PRESETS
-from peghole_mjx.lock import OutputLock, _alive, _proc_start
-from peghole_mjx.provenance import provenance
-from peghole_mjx.validation import RANGES, _num
 
 #: thesis R1 (Sec 3.5): reductions of the mean peak extraction force, %
 R1 = {"tip_vs_top": 77.1, "tip_vs_centre": 55.6}
@@ -98,7 +98,7 @@ class Grid:
         return out
 
     def check(self) -> Grid:
-        """Validate the values against :data:`~peghole_mjx.validation.RANGES` (one clear line
+        """Validate the values against :data:`~peghole_mjx.core.validation.RANGES` (one clear line
         per problem): finite, in range, no value twice, a bounded number of cells and worlds."""
         if not self.presets:
             raise UserInputError("the sweep grid is empty: no presets")
@@ -416,7 +416,7 @@ def run_sweep(cfg: SweepConfig, out: Path, progress: bool = True, force: bool = 
     result. Parameters that differ from those recorded in ``out`` are refused unless ``force``
     (:func:`check_settings`); processes of the same parameters share the folder (slice
     claims), and the results are written under the output's lock
-    (:class:`~peghole_mjx.lock.OutputLock`)."""
+    (:class:`~peghole_mjx.files.lock.OutputLock`)."""
     grid = cfg.grid.check()
     geometry = grid.geometry
     exp = dataclasses.replace(cfg.experiment, geometry=geometry)

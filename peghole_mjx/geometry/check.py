@@ -20,7 +20,7 @@ import jax
 import mujoco
 import numpy as np
 
-from peghole_mjx._mjx import mjx
+from peghole_mjx.core._mjx import mjx
 from peghole_mjx.geometry import mjcf
 from peghole_mjx.geometry.parts import resolve_representation
 from peghole_mjx.geometry.specs import MM, DualSpec, PegHoleSpec

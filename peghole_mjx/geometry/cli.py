@@ -12,8 +12,11 @@ from pathlib import Path
 import mujoco
 from tqdm import tqdm
 
-from peghole_mjx import fileio
-from peghole_mjx.errors import UserInputError
+from peghole_mjx.core.errors import UserInputError
+from peghole_mjx.core.validation import arg, dumps
+from peghole_mjx.files import fileio
+from peghole_mjx.files.lock import command_parameters, writing_files
+from peghole_mjx.files.provenance import provenance
 from peghole_mjx.geometry import check, decompose, mjcf
 from peghole_mjx.geometry.parts import (
     RECT_REPRESENTATIONS,
@@ -21,9 +24,6 @@ from peghole_mjx.geometry.parts import (
     resolve_representation,
 )
 from peghole_mjx.geometry.specs import PRESETS, dual_spec, get_preset, rect_spec, validate
-from peghole_mjx.lock import command_parameters, writing_files
-from peghole_mjx.provenance import provenance
-from peghole_mjx.validation import arg, dumps
 
 _size = arg("size_mm")
 

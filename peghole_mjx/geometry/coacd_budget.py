@@ -34,8 +34,8 @@ import re
 import time
 from dataclasses import dataclass, replace
 
-from peghole_mjx import progress as prog
-from peghole_mjx.errors import UserInputError
+from peghole_mjx.core import progress as prog
+from peghole_mjx.core.errors import UserInputError
 from peghole_mjx.geometry.decompose import CoacdParams, run_coacd
 from peghole_mjx.geometry.specs import MM
 

@@ -28,12 +28,12 @@ import mujoco
 import numpy as np
 from scipy.spatial import ConvexHull
 
-from peghole_mjx import fileio
-from peghole_mjx._optional import optional_import
-from peghole_mjx.errors import UserInputError
+from peghole_mjx.core._optional import optional_import
+from peghole_mjx.core.errors import UserInputError
+from peghole_mjx.core.validation import RANGES, check, dumps
+from peghole_mjx.files import fileio
 from peghole_mjx.geometry.mjcf import SimOptions, _set_options
 from peghole_mjx.geometry.specs import MM, DualSpec, PegHoleSpec, RectSpec
-from peghole_mjx.validation import RANGES, check, dumps
 
 #: warn when the hulls' excess deviation exceeds this fraction of the radial clearance
 WARN_FRACTION = 0.25
@@ -83,7 +83,7 @@ class CoacdParams:
 
     def __post_init__(self):
         """Refuse values CoACD aborts on or never finishes with (ranges in
-        ``peghole_mjx.validation.RANGES``)."""
+        ``peghole_mjx.core.validation.RANGES``)."""
         for name in COACD_OPTIONS:
             check(name, getattr(self, name), f"CoACD {name}")
         if self.preprocess_mode not in ("auto", "on", "off"):

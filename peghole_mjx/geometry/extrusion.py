@@ -31,7 +31,7 @@ from typing import Any
 import numpy as np
 from scipy.spatial import ConvexHull
 
-from peghole_mjx._optional import optional_import
+from peghole_mjx.core._optional import optional_import
 from peghole_mjx.geometry.specs import MM
 
 #: how far (mm) a vertex may lie from its z-level, and a wall face lean from the vertical over

@@ -18,8 +18,8 @@ from pathlib import Path
 import mujoco
 import numpy as np
 
-from peghole_mjx import fileio
-from peghole_mjx.errors import UserInputError
+from peghole_mjx.core.errors import UserInputError
+from peghole_mjx.files import fileio
 from peghole_mjx.geometry import edges
 from peghole_mjx.geometry.parts import (
     ConvexPart,

@@ -50,7 +50,7 @@ from typing import Literal
 import numpy as np
 from scipy.spatial import ConvexHull
 
-from peghole_mjx.errors import UserInputError
+from peghole_mjx.core.errors import UserInputError
 from peghole_mjx.geometry.specs import MM, DualSpec, PegHoleSpec, RectSpec
 from peghole_mjx.geometry.task import REPRESENTATION as TASK_REPRESENTATION
 from peghole_mjx.geometry.task import TaskSpec

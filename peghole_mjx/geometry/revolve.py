@@ -39,8 +39,8 @@ from typing import Any
 
 import numpy as np
 
-from peghole_mjx._optional import optional_import
-from peghole_mjx.errors import UserInputError
+from peghole_mjx.core._optional import optional_import
+from peghole_mjx.core.errors import UserInputError
 from peghole_mjx.geometry.extrusion import (
     MAX_LEVELS,
     MAX_POLYGON_VERTICES,

@@ -31,10 +31,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from peghole_mjx._optional import optional_import
-from peghole_mjx.errors import UserInputError
+from peghole_mjx.core._optional import optional_import
+from peghole_mjx.core.errors import UserInputError
+from peghole_mjx.core.validation import check
 from peghole_mjx.geometry.specs import MM
-from peghole_mjx.validation import check
 
 #: the built-in shapes (see the module table)
 BUILTINS = ("cylinder", "keyed", "l_section", "hex", "three_pin", "tapered")

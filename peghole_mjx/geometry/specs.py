@@ -27,8 +27,8 @@ import math
 from dataclasses import dataclass, field
 from typing import Literal
 
-from peghole_mjx.errors import InfeasibleGeometryError
-from peghole_mjx.validation import RANGES
+from peghole_mjx.core.errors import InfeasibleGeometryError
+from peghole_mjx.core.validation import RANGES
 
 MM = 1e-3  # metres per millimetre
 

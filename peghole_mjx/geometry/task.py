@@ -43,8 +43,8 @@ from typing import Any, Literal
 import numpy as np
 from scipy.spatial import ConvexHull
 
-from peghole_mjx.errors import CorruptFileError, UserInputError
-from peghole_mjx.validation import load_json_object
+from peghole_mjx.core.errors import CorruptFileError, UserInputError
+from peghole_mjx.core.validation import load_json_object
 
 #: the format of a task folder (``manifest.json``'s ``format``) and its version: a folder of
 #: another version is refused (rebuild it with the ``peghole task`` command that made it)

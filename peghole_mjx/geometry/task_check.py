@@ -32,7 +32,7 @@ from dataclasses import dataclass, field
 import mujoco
 import numpy as np
 
-from peghole_mjx.errors import UserInputError
+from peghole_mjx.core.errors import UserInputError
 from peghole_mjx.geometry import check
 from peghole_mjx.geometry.decompose import add_hull_geoms, compile_pieces, measure_deviation
 from peghole_mjx.geometry.mjcf import SimOptions, _set_options

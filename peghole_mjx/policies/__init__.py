@@ -13,7 +13,7 @@ A policy directory holds two files:
   that writes only to its own output;
 * ``params.npz``: the observation normaliser and the policy network's parameters (Brax SAC
   layout), one array per leaf named by its tree path (``0/mean``, ``1/params/hidden_0/kernel``;
-  :mod:`peghole_mjx.treenames`).
+  :mod:`peghole_mjx.core.treenames`).
 
 ``policy.json`` carries ``format_version`` (:data:`FORMAT_VERSION`, docs/guide/training.md, "Policy
 format"): 2 names the arrays by tree path and loads them by name; 1 (before 2026-11-29) stored
@@ -42,12 +42,13 @@ import numpy as np
 from brax.training.acme import running_statistics, specs
 from brax.training.agents.sac import networks as sac_networks
 
-from peghole_mjx import envs, fileio
-from peghole_mjx.checkpoint_folders import MANIFEST, checkpoint_name, newest_policy_checkpoint
-from peghole_mjx.envs.engines import ENGINE_KEYS, engine_overrides, task_overrides
-from peghole_mjx.errors import CorruptFileError, UserInputError
-from peghole_mjx.treenames import differences, named_leaves
-from peghole_mjx.validation import MAX_HIDDEN_LAYERS, RANGES, loads
+from peghole_mjx import envs
+from peghole_mjx.core.errors import CorruptFileError, UserInputError
+from peghole_mjx.core.treenames import differences, named_leaves
+from peghole_mjx.core.validation import MAX_HIDDEN_LAYERS, RANGES, loads
+from peghole_mjx.files import fileio
+from peghole_mjx.files.checkpoint_folders import MANIFEST, checkpoint_name, newest_policy_checkpoint
+from peghole_mjx.sim.engines import ENGINE_KEYS, engine_overrides, task_overrides
 
 POLICY_DIR = Path(__file__).resolve().parent
 #: committed pretrained policies: name -> directory inside the package
@@ -178,7 +179,7 @@ def save_policy(path: str | Path, params, meta: dict[str, Any], atomic: bool = T
 
     ``atomic``: both files are written into a uniquely named temporary folder beside
     ``path`` that then replaces it (both files or neither; an existing ``path`` holding files
-    the program did not write is refused, :func:`peghole_mjx.fileio.replace_dir`); otherwise
+    the program did not write is refused, :func:`peghole_mjx.files.fileio.replace_dir`); otherwise
     into ``path`` itself (already a temporary folder).
     """
     path = Path(path)
@@ -240,7 +241,7 @@ def _same_arrays(a: Path, b: Path) -> bool:
 def check_recorded_params(path: str | Path) -> None:
     """Refuse (:class:`CorruptFileError`, one line naming the file) a policy folder whose
     ``params.npz`` is not the file recorded when it was written (decided 2026-12-04): its
-    SHA-256 against the folder's :data:`~peghole_mjx.fileio.OWNER_MANIFEST` (written by
+    SHA-256 against the folder's :data:`~peghole_mjx.files.fileio.OWNER_MANIFEST` (written by
     :func:`save_policy`), else, for a training run's ``final_policy``, against the manifest
     of the run's checkpoint at the same step (there the arrays are compared when the bytes
     differ). A folder with neither record is not checked."""
@@ -301,7 +302,8 @@ def resolve_policy_path(name: str | Path) -> Path:
 def check_meta(meta: Any, where: str) -> dict[str, Any]:
     """Schema of ``policy.json``, checked before anything is allocated: format version, a
     known env (the same one its training config names), and a network whose sizes are within
-    :data:`peghole_mjx.validation.RANGES`. Returns ``meta``; raises :class:`CorruptFileError`."""
+    :data:`peghole_mjx.core.validation.RANGES`. Returns ``meta``; raises
+    :class:`CorruptFileError`."""
 
     def need(cond: bool, what: str) -> None:
         if not cond:

@@ -50,9 +50,11 @@ import jax.numpy as jnp
 import mujoco
 import numpy as np
 
-from peghole_mjx import __version__, envs, fileio
-from peghole_mjx._optional import optional_import
+from peghole_mjx import __version__, envs
 from peghole_mjx.control.kinematics import rotvec_from_mat
+from peghole_mjx.core._optional import optional_import
+from peghole_mjx.core.errors import UserInputError
+from peghole_mjx.core.treenames import named_leaves
 from peghole_mjx.deploy import (
     ACTION_FILE,
     EXPORT_FORMAT_VERSION,
@@ -63,13 +65,12 @@ from peghole_mjx.deploy import (
     read_spec,
 )
 from peghole_mjx.envs import iiwa_constants as names
-from peghole_mjx.envs.engines import engine_overrides
 from peghole_mjx.envs.metrics import EPISODE_METRICS, EPISODE_RECORD, summarize
 from peghole_mjx.envs.rollout import episode_keys, make_runner, rollout
-from peghole_mjx.errors import UserInputError
+from peghole_mjx.files import fileio
+from peghole_mjx.files.lock import OutputLock
 from peghole_mjx.geometry.mjcf import TOOL_DOWN_MAT
 from peghole_mjx.geometry.specs import MM
-from peghole_mjx.lock import OutputLock
 from peghole_mjx.policies import (
     PolicyBundle,
     check_meta,
@@ -77,7 +78,7 @@ from peghole_mjx.policies import (
     make_policy_fn,
     resolve_policy_path,
 )
-from peghole_mjx.treenames import named_leaves
+from peghole_mjx.sim.engines import engine_overrides
 
 #: the ONNX opset and IR version of ``policy.onnx`` (ONNX Runtime >= 1.13 reads them)
 ONNX_OPSET = 17
@@ -395,7 +396,7 @@ def check_out(out: Path, force: bool) -> None:
     """Refuse (one line) an ``--out`` that cannot take the export: an existing file, a
     non-empty folder without ``force``, with ``force`` a non-empty folder that is not an
     earlier export or that holds files the program did not write (named; ``--force``
-    replaces only the program's own files, :func:`peghole_mjx.fileio.foreign_files`), an
+    replaces only the program's own files, :func:`peghole_mjx.files.fileio.foreign_files`), an
     unwritable parent, a symbolic link loop, a name too long for the temporary names beside
     it."""
     fileio.check_no_link_loop(out, "--out")
@@ -428,7 +429,7 @@ def export_policy(
 ) -> dict[str, Any]:
     """Export ``policy`` (a pretrained name or a policy folder) into ``out`` (all files or
     none: written into a uniquely named folder beside it and moved,
-    :func:`peghole_mjx.fileio.replace_dir`). ``verify``: also run that many episodes of the
+    :func:`peghole_mjx.files.fileio.replace_dir`). ``verify``: also run that many episodes of the
     closed loop through the export and compare them with the JAX evaluation
     (:func:`compare_with_evaluation`, ``engine`` mujoco); a mismatch writes nothing and raises.
     Returns ``{"out", "max_abs_diff", "verification"}``."""
@@ -670,7 +671,7 @@ def compare_with_evaluation(
 
 
 def cmd_export(args: argparse.Namespace) -> int:
-    """``peghole export`` (parser: :mod:`peghole_mjx.export_cli`)."""
+    """``peghole export`` (parser: :mod:`peghole_mjx.cli.export`)."""
     try:
         res = export_policy(
             args.policy, args.out, force=args.force, verify=args.verify, seed=args.seed

@@ -1,8 +1,9 @@
 """Checkpoints of a training run: the one writer (:func:`save`) and reader (:func:`load`) of a
 run's saved state, which to resume from, and which to keep.
 
-``checkpoints/step_N/`` (names, manifest and policy look-up: :mod:`peghole_mjx.checkpoint_folders`)
-holds the run's policy files and, in the :data:`KEEP_STATES` newest, ``state/`` and
+``checkpoints/step_N/`` (names, manifest and policy look-up:
+:mod:`peghole_mjx.files.checkpoint_folders`) holds the run's policy files and, in the
+:data:`KEEP_STATES` newest, ``state/`` and
 ``state.json`` (the whole learner, for ``--resume``). ``state/`` is an orbax checkpoint
 (``StandardCheckpointer``) of the carry as nested dicts named by the carry's tree paths
 (``ts/q_params/...``, ``env_state/data/qpos``), so it is restored by name, not by leaf order
@@ -33,8 +34,11 @@ import jax
 import numpy as np
 import orbax.checkpoint as ocp
 
-from peghole_mjx import fileio
-from peghole_mjx.checkpoint_folders import (
+from peghole_mjx.core.errors import CorruptFileError, UserInputError
+from peghole_mjx.core.treenames import differences, named_leaves, path_name
+from peghole_mjx.core.validation import dumps
+from peghole_mjx.files import fileio
+from peghole_mjx.files.checkpoint_folders import (
     MANIFEST,
     POLICY_FILES,
     checkpoint_dirs,
@@ -42,12 +46,9 @@ from peghole_mjx.checkpoint_folders import (
     seal,
     verify,
 )
-from peghole_mjx.errors import CorruptFileError, UserInputError
-from peghole_mjx.treenames import differences, named_leaves, path_name
-from peghole_mjx.validation import dumps
 
 #: ``state`` is a folder (orbax); the manifest lists the files inside it
-__all__ = [  # the folder names and checks of peghole_mjx.checkpoint_folders belong to the API
+__all__ = [  # the folder names and checks of peghole_mjx.files.checkpoint_folders belong to the API
     "CORRUPTION",
     "KEEP_STATES",
     "MANIFEST",

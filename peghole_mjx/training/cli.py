@@ -1,5 +1,5 @@
 """The parsers of ``peghole train``, ``peghole evaluate`` and ``peghole compare``; the commands
-are in :mod:`peghole_mjx.training.commands`, imported when one runs (:mod:`peghole_mjx.lazy`:
+are in :mod:`peghole_mjx.training.commands`, imported when one runs (:mod:`peghole_mjx.core.lazy`:
 ``peghole --help`` does not import the learner)."""
 
 from __future__ import annotations
@@ -7,18 +7,18 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
+from peghole_mjx.core.errors import UserInputError
+from peghole_mjx.core.lazy import command
+from peghole_mjx.core.validation import arg, key_value
 from peghole_mjx.envs import ENV_NAMES
-from peghole_mjx.envs.engines import CLI_ENGINES, engine_overrides
 from peghole_mjx.envs.mesh_extract import absolute_task
-from peghole_mjx.errors import UserInputError
-from peghole_mjx.lazy import command
+from peghole_mjx.sim.engines import CLI_ENGINES, engine_overrides
 from peghole_mjx.training.config import (
     MAX_SEEDS,
     TRAINING_ENV_DEFAULTS,
     TrainConfig,
     load_train_config,
 )
-from peghole_mjx.validation import arg, key_value
 
 COMMANDS = "peghole_mjx.training.commands"
 

@@ -11,12 +11,13 @@ import os
 import sys
 from pathlib import Path
 
-from peghole_mjx import fileio
-from peghole_mjx.envs.engines import engine_overrides
+from peghole_mjx.core.errors import UserInputError
+from peghole_mjx.core.validation import dumps
 from peghole_mjx.envs.mesh_extract import absolute_task
-from peghole_mjx.errors import UserInputError
-from peghole_mjx.lock import LOCK_NAME, RunLock
+from peghole_mjx.files import fileio
+from peghole_mjx.files.lock import LOCK_NAME, RunLock
 from peghole_mjx.policies import check_recorded_params, load_policy, resolve_policy_path
+from peghole_mjx.sim.engines import engine_overrides
 from peghole_mjx.training import evaluate as evaluation
 from peghole_mjx.training.cli import chosen_profile, train_config_from_args
 from peghole_mjx.training.config import env_setting, read_run_record
@@ -25,7 +26,6 @@ from peghole_mjx.training.logs import read_metrics
 from peghole_mjx.training.plots import image_format, plot_curves
 from peghole_mjx.training.run import TrainingRun, failed_start
 from peghole_mjx.training.seeds import SeedsRun
-from peghole_mjx.validation import dumps
 
 
 def fresh_run_config(args: argparse.Namespace):

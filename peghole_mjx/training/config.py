@@ -52,10 +52,11 @@ from dataclasses import MISSING, asdict, dataclass, field, fields
 from pathlib import Path
 from typing import Any
 
-from peghole_mjx import envs, fileio
-from peghole_mjx.errors import CorruptFileError, UserInputError
+from peghole_mjx import envs
+from peghole_mjx.core.errors import CorruptFileError, UserInputError
+from peghole_mjx.core.validation import MAX_HIDDEN_LAYERS, RANGES, check, dumps, load_json_object
+from peghole_mjx.files import fileio
 from peghole_mjx.training.critics import CRITICS
-from peghole_mjx.validation import MAX_HIDDEN_LAYERS, RANGES, check, dumps, load_json_object
 
 _PKG_CONFIGS = Path(__file__).resolve().parents[1] / "_train_configs"
 _REPO_CONFIGS = Path(__file__).resolve().parents[2] / "train" / "configs"
@@ -124,7 +125,7 @@ class TrainConfig:
         return cfg
 
     def validate(self) -> None:
-        """Type, finiteness and range of every field (``peghole_mjx.validation.RANGES``), then
+        """Type, finiteness and range of every field (``peghole_mjx.core.validation.RANGES``), then
         the relations between them. Whole-number floats (``1e6``) become integers."""
 
         def need(cond: bool, what: str) -> None:

@@ -29,7 +29,7 @@ from brax.training import types as brax_types
 from brax.training.acme import running_statistics
 from flax import linen
 
-from peghole_mjx.errors import UserInputError
+from peghole_mjx.core.errors import UserInputError
 
 #: the ``critic`` choices of :class:`~peghole_mjx.training.config.TrainConfig`
 CRITICS = ("mlp", "layernorm", "simba")

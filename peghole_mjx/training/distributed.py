@@ -14,7 +14,7 @@ import os
 
 import jax
 
-from peghole_mjx.errors import UserInputError
+from peghole_mjx.core.errors import UserInputError
 
 
 def initialize() -> tuple[int, int]:

@@ -21,16 +21,16 @@ from typing import Any
 import jax
 import numpy as np
 
-from peghole_mjx import fileio
-from peghole_mjx import progress as prog
+from peghole_mjx.core import progress as prog
+from peghole_mjx.core.errors import CorruptFileError, UserInputError
+from peghole_mjx.core.validation import load_json_object
 from peghole_mjx.envs import get_default_config
 from peghole_mjx.envs.config import apply_overrides
-from peghole_mjx.envs.engines import ENGINE_KEYS, engine_label
 from peghole_mjx.envs.metrics import EPISODE_RECORD, STUCK_METRICS, stuck_summary
 from peghole_mjx.envs.rollout import SCRIPTED_SPEED_M_S, rollout, scripted_policy
-from peghole_mjx.errors import CorruptFileError, UserInputError
+from peghole_mjx.files import fileio
 from peghole_mjx.policies import PolicyBundle, load_policy
-from peghole_mjx.validation import load_json_object
+from peghole_mjx.sim.engines import ENGINE_KEYS, engine_label
 
 #: the thesis's headline RL numbers (Sec 4.3.2, 4.4; seed_parameters.md R3-R5)
 THESIS_RL = {
@@ -248,7 +248,7 @@ def config_differences(bundle: PolicyBundle, config) -> dict[str, list]:
     """``{dotted key: [trained value, requested value]}`` for every entry of the env config
     ``config`` that differs from the policy's training env config (its ``env_overrides`` on
     the env's defaults). The engine entries (:data:`ENGINE_KEYS`) are provenance, not the task:
-    a policy on another engine is not a difference (issue 51, 2026-12-05)."""
+    a policy on another engine is not a difference (2026-12-05)."""
     trained = requested_config(bundle, None)
     a, b = _flat(json.loads(trained.to_json())), _flat(json.loads(config.to_json()))
     keys = sorted((a.keys() | b.keys()) - set(ENGINE_KEYS))
@@ -292,7 +292,7 @@ def evaluate(
 ) -> dict[str, Any]:
     """``{"policy", "baseline", "force_reduction_pct", "episodes", ...}`` (see module doc).
 
-    ``progress``: each phase on stderr (:mod:`peghole_mjx.progress`): building the env, each
+    ``progress``: each phase on stderr (:mod:`peghole_mjx.core.progress`): building the env, each
     rollout's compile (first run only; cached after) and its bar of env steps.
     ``policy_only``: skip the baseline (``baseline`` and ``force_reduction_pct`` are None).
     ``baselines``: baseline results by episodes key (filled here), so several policies

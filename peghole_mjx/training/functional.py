@@ -26,8 +26,8 @@ import flax
 import jax
 import jax.numpy as jnp
 
-from peghole_mjx.envs import engines
 from peghole_mjx.envs.extraction import PegHoleEnv
+from peghole_mjx.sim import engines
 from peghole_mjx.training.config import TrainConfig
 from peghole_mjx.training.sac import AXIS, Carry, SACTrainer
 

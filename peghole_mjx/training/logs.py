@@ -19,8 +19,8 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from peghole_mjx import fileio
-from peghole_mjx.errors import CorruptFileError, UserInputError
+from peghole_mjx.core.errors import CorruptFileError, UserInputError
+from peghole_mjx.files import fileio
 
 
 @dataclass(frozen=True)

@@ -18,8 +18,8 @@ import numpy as np
 from matplotlib.backend_bases import FigureCanvasBase
 from scipy import stats
 
-from peghole_mjx import fileio
-from peghole_mjx.errors import UserInputError
+from peghole_mjx.core.errors import UserInputError
+from peghole_mjx.files import fileio
 from peghole_mjx.training.config import env_setting, read_run_record
 from peghole_mjx.training.logs import read_metrics, read_rows
 

@@ -7,7 +7,7 @@ Layout of a single-seed ``--out DIR``::
     run.json              env, hyperparameters, network, device, versions, start date
     metrics.csv           one row per evaluation (env steps, wall clock, eval and training stats)
     tb/                   TensorBoard event files (same scalars)
-    run.lock              held by the process writing the run (peghole_mjx/lock.py)
+    run.lock              held by the process writing the run (peghole_mjx/files/lock.py)
     checkpoints/step_N/   policy.json + params.npz at every evaluation; the two newest also
                           hold state/ (orbax, by tree path) + state.json (the whole carry,
                           for --resume);
@@ -38,7 +38,7 @@ wall clock so far and the evaluation schedule. Rows of the log written after tha
 are dropped (their work is redone; none are kept when no checkpoint was written, and the
 earlier history is then moved into ``history_N/``). Nothing of the run is rewritten before the
 new configuration and the checkpoint have been validated and loaded; every file is written
-atomically (``peghole_mjx.fileio``).
+atomically (``peghole_mjx.files.fileio``).
 """
 
 from __future__ import annotations
@@ -56,21 +56,23 @@ import jax
 import numpy as np
 from tqdm import tqdm
 
-from peghole_mjx import envs, fileio, memory
+from peghole_mjx import envs
+from peghole_mjx.core import memory
+from peghole_mjx.core.errors import UserInputError
+from peghole_mjx.core.validation import check, dumps
 from peghole_mjx.envs import rollout as rollouts
-from peghole_mjx.envs.engines import engine_label, task_overrides
 from peghole_mjx.envs.metrics import EVAL_STATS, TOTAL_KEYS, TRAIN_STATS, summarize_totals
-from peghole_mjx.errors import UserInputError
-from peghole_mjx.lock import RunLock
+from peghole_mjx.files import fileio
+from peghole_mjx.files.lock import RunLock
+from peghole_mjx.files.provenance import commit, provenance
 from peghole_mjx.policies import make_policy_fn, save_policy
-from peghole_mjx.provenance import commit, provenance
+from peghole_mjx.sim.engines import engine_label, task_overrides
 from peghole_mjx.training import checkpoints
 from peghole_mjx.training.config import RUN_RECORD, TrainConfig, read_run_record, write_run_record
 from peghole_mjx.training.logs import CsvLog
 from peghole_mjx.training.plots import plot_curves
 from peghole_mjx.training.sac import SACTrainer
 from peghole_mjx.training.video import render_policy_gif
-from peghole_mjx.validation import check, dumps
 
 METRIC_COLUMNS = (
     "step",
@@ -580,7 +582,7 @@ def replay_row_bytes(obs_size: int, act_size: int) -> int:
 
 def check_resources(env, cfg: TrainConfig, obs_size: int, act_size: int, seeds: int = 1) -> int:
     """Refuse, before anything is allocated or compiled, a run whose replay buffer, batch and
-    worlds do not fit the available memory (``peghole_mjx.memory.check_fits``, host and
+    worlds do not fit the available memory (``peghole_mjx.core.memory.check_fits``, host and
     device); return an estimate of the bytes its outputs take on disk (the two newest states
     and the one being written, a policy per evaluation, logs and pictures).
 
@@ -710,8 +712,8 @@ def policy_meta(
     cfg: TrainConfig, network: dict[str, Any], step: int, engine: str | None = None
 ) -> dict[str, Any]:
     """``policy.json`` of a policy trained with ``cfg`` for ``step`` env steps on ``engine``
-    (its ``engine_label``). The engine is provenance, not the task (issue 51, 2026-12-05): the
-    ``env_overrides`` leave out the engine entries (:data:`~peghole_mjx.envs.engines.ENGINE_KEYS`)
+    (its ``engine_label``). The engine is provenance, not the task (2026-12-05): the
+    ``env_overrides`` leave out the engine entries (:data:`~peghole_mjx.sim.engines.ENGINE_KEYS`)
     and ``engine`` records the one trained on; the policy runs on any engine."""
     return {
         "env": cfg.env,

@@ -57,11 +57,11 @@ from brax.training.agents.sac import losses as sac_losses
 from brax.training.types import Transition
 from jax._src import distributed  # private (jax 0.10.2): the coordination client's barrier
 
-from peghole_mjx.envs.engines import batch_reset, select_worlds
+from peghole_mjx.core.errors import UserInputError
 from peghole_mjx.envs.extraction import PegHoleEnv
 from peghole_mjx.envs.metrics import accumulate_return, episode_totals, zero_returns
-from peghole_mjx.errors import UserInputError
 from peghole_mjx.policies import make_networks
+from peghole_mjx.sim.engines import batch_reset, select_worlds
 from peghole_mjx.training.config import TrainConfig, check_discount
 from peghole_mjx.training.critics import with_critic
 

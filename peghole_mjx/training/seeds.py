@@ -35,18 +35,19 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from peghole_mjx import envs, fileio, policies
+from peghole_mjx import envs, policies
+from peghole_mjx.core.errors import CorruptFileError, UserInputError
+from peghole_mjx.core.validation import dumps
 from peghole_mjx.envs import rollout as rollouts
-from peghole_mjx.envs.engines import engine_label
 from peghole_mjx.envs.metrics import EVAL_STATS, TOTAL_KEYS, TRAIN_STATS, summarize_totals
-from peghole_mjx.errors import CorruptFileError, UserInputError
-from peghole_mjx.provenance import provenance
+from peghole_mjx.files import fileio
+from peghole_mjx.files.provenance import provenance
+from peghole_mjx.sim.engines import engine_label
 from peghole_mjx.training import checkpoints
 from peghole_mjx.training.config import TrainConfig, env_setting, read_run_record
 from peghole_mjx.training.functional import SEED_AXIS, make_train
 from peghole_mjx.training.plots import plot_seed_bands, t_interval
 from peghole_mjx.training.run import EVAL_SEED_OFFSET, Run, check_resources, policy_meta
-from peghole_mjx.validation import dumps
 
 #: the losses logged per chunk (means over its calls)
 LOSSES = ("loss/critic", "loss/actor", "loss/alpha", "alpha")

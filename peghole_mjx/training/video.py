@@ -3,7 +3,7 @@
 Headless by default: :mod:`peghole_mjx` selects ``MUJOCO_GL=egl`` when there is no display
 (set ``MUJOCO_GL=osmesa`` where EGL is missing).
 
-Progress (stderr, :mod:`peghole_mjx.progress`): the compile of the episode's reset, step and
+Progress (stderr, :mod:`peghole_mjx.core.progress`): the compile of the episode's reset, step and
 policy is one labelled phase, the episode one bar counting env steps with the frames drawn.
 Decided 2026-12-02: the render (compile and frames) took 4.5 min on a 2-core CPU after the
 training bar had reached 100 %, with nothing on screen.
@@ -18,7 +18,7 @@ import mujoco
 import numpy as np
 from PIL import Image
 
-from peghole_mjx import progress as prog
+from peghole_mjx.core import progress as prog
 from peghole_mjx.policies import load_policy
 
 

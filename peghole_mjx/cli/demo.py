@@ -1,5 +1,5 @@
 """``peghole demo``: the parser and the demo's names on disk. What the demo does is
-:mod:`peghole_mjx.demo`, imported when the command runs (:mod:`peghole_mjx.lazy`: ``peghole
+:mod:`peghole_mjx.demo`, imported when the command runs (:mod:`peghole_mjx.core.lazy`: ``peghole
 --help`` does not import the learner and the experiment, 2.8 s on the 2-core CPU, 2026-12-02).
 """
 
@@ -8,8 +8,8 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from peghole_mjx.lazy import command
-from peghole_mjx.validation import arg
+from peghole_mjx.core.lazy import command
+from peghole_mjx.core.validation import arg
 
 #: the command's description (``peghole demo --help``)
 DESCRIPTION = """``peghole demo``: the whole pipeline once, with a short report.

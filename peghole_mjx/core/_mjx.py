@@ -6,9 +6,9 @@ through here, early, keeps stdout clean; any other import output still goes to s
 
 ``support`` is MJX's private ``mujoco.mjx._src.support`` (point Jacobian, full inertia matrix),
 used by :mod:`peghole_mjx.control.kinematics`; a MuJoCo upgrade that moves it breaks here
-only; ``solver`` is MJX's private ``mujoco.mjx._src.solver``, which :mod:`peghole_mjx.mjx_fixes`
+only; ``solver`` is MJX's private ``mujoco.mjx._src.solver``, which :mod:`peghole_mjx.sim.mjx_fixes`
 patches; ``warp_types`` and ``tree_path_to_attr_str`` give MJX's own table of MuJoCo Warp's
-fields shared by a batch's worlds (read by :func:`peghole_mjx.envs.engines.select_worlds`).
+fields shared by a batch's worlds (read by :func:`peghole_mjx.sim.engines.select_worlds`).
 """
 
 from __future__ import annotations
@@ -16,8 +16,6 @@ from __future__ import annotations
 import contextlib
 import io
 import sys
-
-import jax
 
 _buf = io.StringIO()
 with contextlib.redirect_stdout(_buf):
@@ -32,21 +30,8 @@ for _line in _buf.getvalue().splitlines():
         print(_line, file=sys.stderr)
 
 
-def default_engine() -> str:
-    """The engine ``auto`` stands for on this machine, for the envs and the experiments alike:
-    ``mujoco`` (MuJoCo C) where JAX has no GPU; on a CUDA GPU ``mjx-warp`` (MuJoCo Warp) when
-    warp-lang is installed, else ``mjx`` (MJX-JAX) (measured:
-    benchmarks/results/perf/throughput_engines_cpu-2core.json; decided 2026-12-05, issue 51:
-    one default for the env, the commands, the experiments, Gym and Playground)."""
-    backend = jax.default_backend()
-    if backend == "cpu":
-        return "mujoco"
-    return "mjx-warp" if backend in ("gpu", "cuda") and WARP_AVAILABLE else "mjx"
-
-
 __all__ = [
     "WARP_AVAILABLE",
-    "default_engine",
     "mjx",
     "solver",
     "support",

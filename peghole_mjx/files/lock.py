@@ -18,7 +18,7 @@ folder written whole, a result file): ``PARENT/.NAME.lock`` beside it, taken bef
 and held until the output is in place, so that a second writer of the same output is refused
 in one line naming the holder (PID, host, command) instead of both reporting success.
 :func:`writing_files` (decided 2026-12-05) is that lock with the ownership rule of files
-written one by one (:func:`peghole_mjx.fileio.check_file_replaceable`): every such writer
+written one by one (:func:`peghole_mjx.files.fileio.check_file_replaceable`): every such writer
 goes through it.
 """
 
@@ -33,8 +33,8 @@ import time
 from collections.abc import Iterator
 from pathlib import Path
 
-from peghole_mjx import fileio
-from peghole_mjx.errors import UserInputError
+from peghole_mjx.core.errors import UserInputError
+from peghole_mjx.files import fileio
 
 LOCK_NAME = "run.lock"
 #: the lock of a folder written into (:class:`OutputLock` with ``inside``)
@@ -213,9 +213,9 @@ def writing_files(
     """Write ``files`` (path -> the parameters it is made with) as their one writer, under the
     program's ownership rule (decided 2026-12-05): the output's lock (:class:`OutputLock` of
     ``lock``, default the only file) is taken, then every existing file is checked
-    (:func:`peghole_mjx.fileio.check_file_replaceable`: the program's, unchanged, of the same
+    (:func:`peghole_mjx.files.fileio.check_file_replaceable`: the program's, unchanged, of the same
     parameters unless ``force``), all before the body's work. Each file the body wrote, also
-    when it then failed, gets its record (:func:`peghole_mjx.fileio.write_file_record`).
+    when it then failed, gets its record (:func:`peghole_mjx.files.fileio.write_file_record`).
     ``has_force``: the command has a ``--force`` (named in the advice)."""
     if lock is None:
         if len(files) != 1:

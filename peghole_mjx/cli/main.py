@@ -15,10 +15,12 @@ import threading
 import time
 import traceback
 
-import peghole_mjx._mjx  # noqa: F401  (first: keeps mjx's import chatter off stdout)
-from peghole_mjx import __version__, lock, runtime
-from peghole_mjx import progress as prog
-from peghole_mjx.errors import REPORTED_ERRORS
+import peghole_mjx.core._mjx  # noqa: F401  (first: keeps mjx's import chatter off stdout)
+from peghole_mjx import __version__
+from peghole_mjx.core import progress as prog
+from peghole_mjx.core import runtime
+from peghole_mjx.core.errors import REPORTED_ERRORS
+from peghole_mjx.files import lock
 
 #: command group -> module that defines it
 GROUPS: dict[str, str] = {
@@ -28,14 +30,14 @@ GROUPS: dict[str, str] = {
     "envs": "peghole_mjx.envs.cli",
     "task": "peghole_mjx.envs.task_cli",  # a task folder (any peg-hole) for MeshExtract
     "train": "peghole_mjx.training.cli",  # also adds `evaluate` and `compare`
-    "demo": "peghole_mjx.demo_cli",
-    "export": "peghole_mjx.export_cli",  # policy -> ONNX for a robot (peghole_mjx.deploy)
+    "demo": "peghole_mjx.cli.demo",
+    "export": "peghole_mjx.cli.export",  # policy -> ONNX for a robot (peghole_mjx.deploy)
 }
 
 
 #: commands whose ``--out`` file the dispatcher writes through :func:`lock.writing_files` (one
 #: writer, the program's own file, a file of other parameters refused; decided 2026-12-05):
-#: their modules write it with :mod:`peghole_mjx.fileio`, and have no ``--force``
+#: their modules write it with :mod:`peghole_mjx.files.fileio`, and have no ``--force``
 FILE_OUTPUTS = {"evaluate": "peghole evaluate", "compare": "peghole compare"}
 
 
@@ -116,7 +118,7 @@ def _handle_sigterm():
 
 def console() -> int:
     """The ``peghole`` program: :func:`main` with the command's clock
-    (:func:`peghole_mjx.progress.command_start`) set to the process's start, its imports
+    (:func:`peghole_mjx.core.progress.command_start`) set to the process's start, its imports
     included (``peghole task make``'s 30 s CoACD verdict counts from there)."""
     age = prog.process_age_s()
     return main(started=None if age is None else time.perf_counter() - age)
@@ -124,7 +126,7 @@ def console() -> int:
 
 def main(argv: list[str] | None = None, started: float | None = None) -> int:
     """The ``peghole`` entry point: process-wide settings first
-    (:func:`peghole_mjx.runtime.configure`; importing JAX and MJX above starts no backend, so
+    (:func:`peghole_mjx.core.runtime.configure`; importing JAX and MJX above starts no backend, so
     the XLA flags still apply), then the command. ``started``: ``time.perf_counter()`` when
     the command began (default: now)."""
     started = time.perf_counter() if started is None else started

@@ -1,6 +1,6 @@
 """Command functions imported when the command runs, not when the parser is built.
 
-``peghole --help`` builds every group's parser (:mod:`peghole_mjx.cli`), so a group's parser
+``peghole --help`` builds every group's parser (:mod:`peghole_mjx.cli.main`), so a group's parser
 module imports only what its arguments need; what a command does lives in another module
 with its imports at the top, named here as ``module:function`` and imported on the first
 call. Decided 2026-12-02 while every import of the package moved to the top of its module:

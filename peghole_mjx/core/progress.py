@@ -97,7 +97,7 @@ _command_start: float | None = None
 @contextmanager
 def command_clock(started: float) -> Iterator[None]:
     """While a command runs, :func:`command_start` is ``started`` (``time.perf_counter()``
-    when it began); set by :func:`peghole_mjx.cli.main`."""
+    when it began); set by :func:`peghole_mjx.cli.main.main`."""
     global _command_start
     previous, _command_start = _command_start, started
     try:

@@ -15,8 +15,8 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from peghole_mjx.lazy import command
-from peghole_mjx.validation import arg
+from peghole_mjx.core.lazy import command
+from peghole_mjx.core.validation import arg
 
 
 def add_parser(sub: argparse._SubParsersAction) -> None:

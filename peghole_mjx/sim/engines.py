@@ -20,7 +20,7 @@ Engines, chosen by the env config entry ``engine``:
 
 * ``mjx`` (:class:`MjxEngine`, this module): MuJoCo MJX, ``impl`` ``jax`` (CPU, GPU) or
   ``warp`` (MuJoCo Warp: CUDA GPU, or slowly a CPU); the state is an ``mjx.Data``;
-* ``mujoco`` (:class:`peghole_mjx.envs.engine_mujoco.MujocoEngine`): MuJoCo C through
+* ``mujoco`` (:class:`peghole_mjx.sim.engine_mujoco.MujocoEngine`): MuJoCo C through
   ``mujoco.batch`` on a thread pool, entered from the jitted env through ``jax.pure_callback``;
   the state is MuJoCo's integration state row, float64 carried bit for bit.
 
@@ -38,16 +38,16 @@ import jax.numpy as jnp
 import mujoco
 import numpy as np
 
-from peghole_mjx._mjx import default_engine, mjx, tree_path_to_attr_str, warp_types
 from peghole_mjx.control import ImpedanceController, ImpedanceParams, Target
-from peghole_mjx.errors import UserInputError
+from peghole_mjx.core._mjx import WARP_AVAILABLE, mjx, tree_path_to_attr_str, warp_types
+from peghole_mjx.core.errors import UserInputError
 
 #: the physics engines an env config may name (``engine``); ``mjx-warp`` on the command line is
 #: ``engine=mjx`` with ``impl=warp``
 ENGINES = ("mjx", "mujoco")
 
 #: the ``--engine`` choices of the commands: ``auto`` is :func:`default_engine` (in
-#: :mod:`peghole_mjx._mjx`, below the envs and the experiments, which share its rule)
+#: :mod:`peghole_mjx.core._mjx`, below the envs and the experiments, which share its rule)
 CLI_ENGINES = ("auto", "mjx", "mjx-warp", "mujoco")
 
 #: the named ``vmap`` axes of a batch of worlds: callers map ``env.reset`` over the worlds with
@@ -144,6 +144,18 @@ def resolve_engine(config):
     for key, value in engine_overrides(default_engine()).items():
         config[key] = value
     return config
+
+
+def default_engine() -> str:
+    """The engine ``auto`` stands for on this machine, for the envs and the experiments alike:
+    ``mujoco`` (MuJoCo C) where JAX has no GPU; on a CUDA GPU ``mjx-warp`` (MuJoCo Warp) when
+    warp-lang is installed, else ``mjx`` (MJX-JAX) (measured:
+    benchmarks/results/perf/throughput_engines_cpu-2core.json; decided 2026-12-05:
+    one default for the env, the commands, the experiments, Gym and Playground)."""
+    backend = jax.default_backend()
+    if backend == "cpu":
+        return "mujoco"
+    return "mjx-warp" if backend in ("gpu", "cuda") and WARP_AVAILABLE else "mjx"
 
 
 def engine_overrides(choice: str) -> dict[str, str]:

@@ -21,8 +21,8 @@ import re
 import sys
 from pathlib import Path
 
-from peghole_mjx import fileio
-from peghole_mjx.errors import CorruptFileError
+from peghole_mjx.core.errors import CorruptFileError
+from peghole_mjx.files import fileio
 
 MANIFEST = "manifest.json"
 POLICY_FILES = ("policy.json", "params.npz")

@@ -49,7 +49,7 @@ def configure() -> None:
     if flag_name not in os.environ.get("XLA_FLAGS", ""):
         if _backends_started():
             warnings.warn(
-                f"peghole_mjx.runtime.configure(): JAX's backends already started, {CPU_FLAG} "
+                f"peghole_mjx.core.runtime.configure(): JAX's backends already started, {CPU_FLAG} "
                 "not applied (call configure() before the first JAX computation)",
                 stacklevel=2,
             )

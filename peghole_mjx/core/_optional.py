@@ -11,7 +11,7 @@ from __future__ import annotations
 import importlib
 from types import ModuleType
 
-from peghole_mjx.errors import MissingExtraError
+from peghole_mjx.core.errors import MissingExtraError
 
 #: the extra of pyproject.toml that installs each optional module
 EXTRAS = {

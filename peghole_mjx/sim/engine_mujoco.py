@@ -48,8 +48,8 @@ except ImportError:
 
 from peghole_mjx.control import ImpedanceController, ImpedanceParams
 from peghole_mjx.control.reference import impedance_torque, tool_centre
-from peghole_mjx.envs.engines import FTReading, Readout, SceneIds, Sense
-from peghole_mjx.errors import UserInputError
+from peghole_mjx.core.errors import UserInputError
+from peghole_mjx.sim.engines import FTReading, Readout, SceneIds, Sense
 
 STATE_SPEC = mujoco.mjtState.mjSTATE_INTEGRATION
 

@@ -25,7 +25,7 @@ import functools
 import inspect
 from collections.abc import Callable, Iterator
 
-from peghole_mjx._mjx import solver  # MJX's private solver module, imported quietly
+from peghole_mjx.core._mjx import solver  # MJX's private solver module, imported quietly
 
 _OLD = """      ttt = jp.maximum(t * t * t, mujoco.mjMINVAL)
       h = jax.vmap(lambda x, y: x * jp.outer(y, y.T))(mu * n / ttt, u)"""

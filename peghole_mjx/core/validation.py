@@ -19,9 +19,9 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from peghole_mjx.errors import UserInputError
+from peghole_mjx.core.errors import UserInputError
 
-# (UserInputError is imported where raised: peghole_mjx.errors imports the geometry specs,
+# (UserInputError is imported where raised: peghole_mjx.core.errors imports the geometry specs,
 # which read RANGES while this module may still be loading)
 
 #: the largest peg-hole dimension (mm) the iiwa 14 scene holds within the robot's reach: its

@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from peghole_mjx.errors import UserInputError
+from peghole_mjx.core.errors import UserInputError
 
 
 def rotvec_from_mat(R: np.ndarray) -> np.ndarray:

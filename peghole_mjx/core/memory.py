@@ -14,7 +14,7 @@ import jax
 import mujoco
 import numpy as np
 
-from peghole_mjx.errors import UserInputError
+from peghole_mjx.core.errors import UserInputError
 
 #: share of the available memory a run may plan to use (the rest: XLA's work space, Python)
 USABLE_FRACTION = 0.8
