@@ -227,7 +227,9 @@ def test_contact_count_replay_is_the_envs_step():
     assert out["max_active"] > 0 and out["env_steps_per_world"] == 3
     assert env.engine.ctrl_log is None
     with pytest.raises(ValueError, match="mujoco engine"):
-        contact_caps.count_c(envs.load("RectExtract"), "scripted", 1, 1)
+        contact_caps.count_c(
+            envs.load("RectExtract", config_overrides={"engine": "mjx"}), "scripted", 1, 1
+        )
 
 
 def test_the_retired_engine_is_refused_in_one_line(capsys, tmp_path):

@@ -57,7 +57,7 @@ def _contacts(data, impl: str) -> tuple[int, float]:
 
 
 def _run(name: str, impl: str) -> dict:
-    env = envs.load(name, config_overrides={"impl": impl})
+    env = envs.load(name, config_overrides={"engine": "mjx", "impl": impl})
     action = scripted_policy(env)(None, None)
 
     def run(key):

@@ -19,10 +19,12 @@ import socket
 import subprocess
 import sys
 import time
+import types
 from pathlib import Path
 
 import numpy as np
 import pytest
+from ml_collections import config_dict
 
 from peghole_mjx.cli import main as cli
 from peghole_mjx.core.errors import CorruptFileError, UserInputError
@@ -127,6 +129,10 @@ def bare_run(out, cfg):
     run = TrainingRun.__new__(TrainingRun)
     run.cfg, run.out, run.ckpt_dir = cfg, out, out / "checkpoints"
     run.lock, run._pending_meta = None, None
+    # what the run records of its env: the engine (run.json, policy.json) and the strategy
+    run.env = types.SimpleNamespace(
+        config=config_dict.ConfigDict({"engine": "mujoco", "compliance_strategy": True})
+    )
     return run
 
 

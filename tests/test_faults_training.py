@@ -251,7 +251,6 @@ def test_summary_json_of_a_run_without_a_successful_episode_is_strict_json(tmp_p
     run = bare_run(out, cfg)
     run.render = False
     run.trainer = types.SimpleNamespace(network={}, policy_params=lambda c: None)
-    run.env = types.SimpleNamespace(config=types.SimpleNamespace(compliance_strategy=True))
     monkeypatch.setattr(run_mod, "save_policy", lambda *a, **k: None)
     run.finish(None, 400, 1.0)
     summary = strict_json((out / "summary.json").read_text())

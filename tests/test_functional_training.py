@@ -14,6 +14,7 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
+from peghole_mjx.sim.engines import task_overrides
 from peghole_mjx.training.config import load_train_config
 
 TINY = {
@@ -124,7 +125,8 @@ def test_seeds_run_writes_per_seed_policies_history_and_intervals(seeds_run):
     for k in range(2):
         bundle = load_policy(run.out / f"seed_{k}" / "final_policy")
         assert bundle.meta["train_config"]["seed"] == k
-        assert bundle.env_overrides == run.cfg.env_overrides
+        # the engine is provenance (policy.json "engine"), not the task
+        assert bundle.env_overrides == task_overrides(run.cfg.env_overrides)
     assert (run.out / "curves.png").stat().st_size > 0
     assert json.loads((run.out / "seeds.json").read_text())["env_steps"] == 80
 

@@ -39,7 +39,7 @@ def test_generalisation_command_runs_a_cell_and_resumes(tmp_path, capsys):
     assert doc["complete"] and doc["cells_planned"] == ["custom"]
     (cell,) = doc["cells"]
     assert cell["cell"] == "custom" and not cell["trained_on"]
-    assert set(cell["differs_from_training"]) == {"geometry", "engine"}
+    assert set(cell["differs_from_training"]) == {"geometry"}  # the engine: provenance
     assert doc["engine"] == "mujoco"
     assert "49.9 x 29.9" in cell["describe"]
     for who in ("policy", "baseline"):

@@ -169,6 +169,27 @@ RECORDED: list[dict] = [
         "checkout, not a git archive copy",
     },
     {
+        "kind": "suite_loaded",
+        "label": "free 2-core CPU, warm compile cache, warp-lang installed (its Warp tests ran "
+        "in the suite), the worktree: not a CI-like run, so outside the cold-cache range",
+        "wall_s": 2589,
+        "device": "cpu (2 cores, x86_64)",
+        "versions": _VERSIONS_WARP,
+        "date": "2026-12-05",
+        "command": " ".join(SUITE_COMMAND) + " -p no:cacheprovider --durations=60",
+        "config": {
+            **_SUITE_CONFIG,
+            "warp_lang_installed": True,
+            "compile_cache": "warm: the suite's cache folder kept from earlier runs",
+            "tree": "the working tree at the commit",
+        },
+        "commit": "734fac7",
+        "outcome": "1368 passed, 8 failed (tests that expected MJX as the env default or the "
+        "engine among a policy's task differences; mended in the next commit), 15 skipped",
+        "source": "the run's log (pytest's summary line), 17:18-18:01 UTC; the worktree "
+        "checkout, not a git archive copy",
+    },
+    {
         "kind": "demo",
         "label": "2-core CPU shared with two short jobs (140 % CPU to the demo)",
         "wall_s": 548,
