@@ -133,17 +133,20 @@ def task_overrides(overrides: dict) -> dict:
 
 
 def resolve_engine(config):
-    """``config`` with ``engine`` ``auto`` made concrete (:func:`default_engine`; an ``impl``
-    of warp asks for MJX-Warp): a copy, the config itself when its engine is already concrete."""
+    """``config`` with ``engine`` ``auto`` made concrete (:func:`auto_choice`): a copy, the
+    config itself when its engine is already concrete."""
     if config.engine != "auto":
         return config
     config = config.copy_and_resolve_references()
-    if config.get("impl", "jax") == "warp":
-        config.engine = "mjx"
-        return config
-    for key, value in engine_overrides(default_engine()).items():
+    for key, value in engine_overrides(auto_choice(config.get("impl", "jax"))).items():
         config[key] = value
     return config
+
+
+def auto_choice(impl: str = "jax") -> str:
+    """The ``--engine`` name that engine ``auto`` stands for: ``mjx-warp`` when ``impl`` asks
+    for MuJoCo Warp, else :func:`default_engine`."""
+    return "mjx-warp" if impl == "warp" else default_engine()
 
 
 def default_engine() -> str:
@@ -174,7 +177,7 @@ def engine_label(config) -> str:
     ``mjx-warp``): what results record as their engine."""
     impl = config.get("impl", "jax") if hasattr(config, "get") else "jax"
     if config["engine"] == "auto":
-        return default_engine() if impl != "warp" else "mjx-warp"
+        return auto_choice(impl)
     return "mjx-warp" if config["engine"] == "mjx" and impl == "warp" else config["engine"]
 
 
