@@ -3,6 +3,7 @@ kinematics against MuJoCo's own, its substeps against a loop over one MjData per
 model fields, NaN worlds, and its bad-input errors."""
 
 import json
+import types
 
 import jax
 import jax.numpy as jnp
@@ -150,6 +151,46 @@ def test_a_rollouts_two_graph_reset_equals_the_env_reset(env, fns):
     assert not np.asarray(finished).any()
     for a, b in zip(jax.tree.leaves(one), jax.tree.leaves(two), strict=True):
         np.testing.assert_array_equal(np.asarray(a), np.asarray(b))
+
+
+def test_the_reset_ik_runs_in_mujoco_c_and_meets_the_mjx_ik(env, monkeypatch):
+    """The mujoco engine's reset solves the start pose in MuJoCo C on the host: tracing its
+    reset traces none of MJX's kinematics, and its joint angles put the peg tip where the MJX
+    engine's IK does (to float32 rounding: 2e-6 rad; measured 7e-7 on 2026-12-05) at the
+    preset's insertion depth."""
+    from peghole_mjx.control import kinematics
+
+    traced = []
+    counting = types.SimpleNamespace(
+        kinematics=lambda m, d: traced.append(1), com_pos=kinematics.mjx.com_pos
+    )
+    keys = jax.random.split(jax.random.PRNGKey(5), N)
+    with monkeypatch.context() as mp:
+        mp.setattr(kinematics, "mjx", counting)
+        kinematics._newton_ik.clear_cache()
+        calls = env.engine.timing["ik_calls"]
+        q_c = np.asarray(jax.jit(jax.vmap(env.reset_start))(keys)["q"])
+        assert not traced and env.engine.timing["ik_calls"] == calls + 1
+    kinematics._newton_ik.clear_cache()
+    mjx_env = envs.load("RectExtract", config_overrides={"engine": "mjx"})
+    q_mjx = np.asarray(jax.jit(jax.vmap(mjx_env.reset_start))(keys)["q"])
+    assert np.abs(q_c - q_mjx).max() < 2e-6
+    assert np.abs(q_c - q_c[:1]).max() > 1e-3  # four moved holes, four starts
+    depth = np.asarray(jax.jit(jax.vmap(env.reset))(keys).info["depth_mm"])
+    np.testing.assert_allclose(depth, env._depth0_mm, atol=1e-3)
+    assert env._mjx_model is None  # the C engine's env never put an MJX model
+
+
+def test_a_scene_mjx_cannot_load_runs_on_the_c_engine():
+    """The dual scene's cylinder representation (cylinder-box pairs: MJX-JAX has no collision
+    function for them) builds, resets and steps on the mujoco engine, which never loads MJX."""
+    over = {"engine": "mujoco", "representation": "cylinder"}
+    env = envs.load("DualExtract", config_overrides=over)
+    with pytest.raises(NotImplementedError, match="CYLINDER"):  # MJX-JAX cannot load it
+        _ = env.mjx_model
+    s = jax.vmap(env.reset)(jax.random.split(jax.random.PRNGKey(0), 2))
+    s = jax.vmap(env.step)(s, jnp.zeros((2, env.action_size)))
+    assert np.isfinite(np.asarray(s.obs)).all()
 
 
 def test_per_world_friction_reaches_the_c_engine(env, fns):

@@ -32,6 +32,7 @@ from peghole_mjx.envs.randomization import (
 )
 from peghole_mjx.envs.reward import outcome_terms, reward_terms
 from peghole_mjx.envs.stuck import weld_solref
+from peghole_mjx.sim import engines
 
 ENV = "RectExtract"
 PEG_LENGTH_M = 0.15
@@ -306,12 +307,11 @@ def test_impl_and_warp_buffers_are_read(monkeypatch):
         with pytest.raises(UserInputError, match="warp"):
             envs.load(ENV, config_overrides={"impl": "warp"})
     seen = []
-    monkeypatch.setattr(base.mjx, "make_data", lambda m, **kw: seen.append((m, kw)))
+    monkeypatch.setattr(engines.mjx, "make_data", lambda m, **kw: seen.append((m, kw)))
     for over in ({}, {"naconmax": 32, "njmax": 128}):
         c = apply_overrides(envs.get_default_config(ENV), {"impl": "warp", **over})
-        base.PegHoleBase._make_data(
-            types.SimpleNamespace(_config=c, _mj_model="mj", _mjx_model=None)
-        )
+        engine = engines.MjxEngine(None, None, None, c.impl, c.naconmax, c.njmax, mj_model="mj")
+        engine.ik_data()  # the reset IK's data (one world)
     assert seen == [
         ("mj", {"impl": "warp", "naconmax": 64, "njmax": 256}),
         ("mj", {"impl": "warp", "naconmax": 32, "njmax": 128}),
@@ -459,8 +459,8 @@ def test_the_start_ik_is_traced_once_and_equals_the_inline_ik_bit_for_bit(monkey
     monkeypatch.setattr(kinematics, "mjx", counting)
     kinematics._newton_ik.clear_cache()
     keys = jax.random.split(jax.random.PRNGKey(3), 4)
-    mujoco_engine = {"engine": "mujoco"}
-    first, second, third = (envs.load("RectExtract", config_overrides=mujoco_engine) for _ in "123")
+    mjx_engine = {"engine": "mjx"}
+    first, second, third = (envs.load("RectExtract", config_overrides=mjx_engine) for _ in "123")
     q = jax.jit(jax.vmap(first.reset_start))(keys)["q"]
     assert traced, "the IK's body was not traced"
     n_first = len(traced)
@@ -472,7 +472,7 @@ def test_the_start_ik_is_traced_once_and_equals_the_inline_ik_bit_for_bit(monkey
         statics |= {"point_local": tuple(point_local), "iterations": iterations}
         return kinematics._newton_ik.__wrapped__(m, d0, q0, pos_target, mat_target, **statics)
 
-    monkeypatch.setattr(extraction, "newton_ik", inline)
+    monkeypatch.setattr(engines, "newton_ik", inline)
     q_inline = jax.jit(jax.vmap(third.reset_start))(keys)["q"]
     assert len(traced) > n_first  # traced again, inline in the reset's graph
     np.testing.assert_array_equal(np.asarray(q), np.asarray(q_inline))

@@ -206,17 +206,19 @@ def test_cli_resume_of_a_seeds_run_takes_its_own_config(seeds_run, capsys):
 def test_vmapped_learner_resets_only_on_steps_where_a_world_finished(seeds_run):
     """Two seeds vmapped in one call: a call of 5 env steps in which no world can finish
     (episode_length 25) makes no reset call on the host; the call that reaches the time limit
-    makes at least one and at most one per step. Without the seeds' named axis the reset's
-    ``lax.cond`` becomes a select and resets every world at every step (5 calls here)."""
+    makes at least one and at most one per step, and as many IK calls (the reset's start pose,
+    solved on the host too). Without the seeds' named axis the reset's ``lax.cond`` becomes a
+    select and resets every world at every step (5 calls here)."""
     run, _ = seeds_run
     timing = run.env.engine.timing
     carry = run._init(run.keys)
-    n0 = timing["init_calls"]
+    n0, k0 = timing["init_calls"], timing["ik_calls"]
     carry, _ = run._call(carry, jnp.asarray(False))
-    assert timing["init_calls"] == n0
+    assert (timing["init_calls"], timing["ik_calls"]) == (n0, k0)
     for _ in range(4):  # steps 6 to 25: every world reaches the time limit at step 25
         carry, _ = run._call(carry, jnp.asarray(False))
     assert 1 <= timing["init_calls"] - n0 <= 5
+    assert timing["ik_calls"] - k0 == timing["init_calls"] - n0
 
 
 def test_a_time_out_is_bootstrapped_under_the_outcome_reward(seeds_run):

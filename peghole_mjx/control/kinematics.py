@@ -79,6 +79,8 @@ def newton_ik(
     rotation ``mat_target``: ``iterations`` least-squares Newton steps from ``q0``.
 
     ``d0``: data holding everything else (e.g. mocap poses); only ``qpos[qadr]`` changes.
+    The MJX engines' reset IK; the ``mujoco`` engine runs the same Newton steps in MuJoCo C
+    (:meth:`peghole_mjx.sim.engine_mujoco.MujocoEngine.solve_ik`).
 
     A jitted function of its own (:func:`_newton_ik`, the indices and the body point as
     static arguments): JAX keeps its trace, so the second and later graphs that hold it (an

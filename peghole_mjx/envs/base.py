@@ -92,7 +92,9 @@ class PegHoleBase:
         #: the peg length (m), the scale of the flange height and L_C
         self.peg_length_m = self.spec.length_mm * MM
         self.representation = resolve_representation(
-            self.spec, config.representation, impl=config.impl
+            self.spec,
+            config.representation,
+            impl="c" if config.engine == "mujoco" else config.impl,
         )
         scene = build_scene(
             self.spec,
@@ -114,9 +116,9 @@ class PegHoleBase:
             # only with nativeccd off; the cylinder representation's cylinder-box pairs go
             # through GJK/EPA either way
             m.opt.disableflags |= mujoco.mjtDisableBit.mjDSBL_NATIVECCD
-        # on this process's first device: MJX's default, jax.devices()[0], belongs to process
-        # 0 when several processes train together (training/distributed.py)
-        self._mjx_model = mjx.put_model(m, impl=config.impl, device=jax.local_devices()[0])
+        # the MJX model, on the MJX engines only: the mujoco engine never reads it (its reset's
+        # IK and its steps run in MuJoCo C), so a scene MJX cannot load runs there
+        self._mjx_model = self._put_mjx_model() if config.engine == "mjx" else None
         limits = ControlLimits(
             max_force_N=tuple(config.limits.max_force_N),
             max_torque_Nm=tuple(config.limits.max_torque_Nm),
@@ -184,7 +186,16 @@ class PegHoleBase:
 
     @property
     def mjx_model(self) -> mjx.Model:
+        """The ``mjx.Model`` of the scene (put on the device on first use on the ``mujoco``
+        engine, whose physics never reads it)."""
+        if self._mjx_model is None:
+            self._mjx_model = self._put_mjx_model()
         return self._mjx_model
+
+    def _put_mjx_model(self) -> mjx.Model:
+        # on this process's first device: MJX's default, jax.devices()[0], belongs to process
+        # 0 when several processes train together (training/distributed.py)
+        return mjx.put_model(self._mj_model, impl=self._config.impl, device=jax.local_devices()[0])
 
     @property
     def dt(self) -> float:
@@ -199,16 +210,6 @@ class PegHoleBase:
         return self
 
     # ------------------------------------------------------------------ data and readings
-    def _make_data(self):
-        """An MJX ``mjx.Data`` at the model's defaults (the reset's IK runs in MJX).
-
-        MuJoCo Warp's ``make_data`` takes the compiled ``mujoco.MjModel`` only (mujoco-mjx
-        3.17.0 raises ValueError for an ``mjx.Model``); MJX-JAX's takes the ``mjx.Model``."""
-        c = self._config
-        if c.impl == "warp":
-            return mjx.make_data(self._mj_model, impl="warp", naconmax=c.naconmax, njmax=c.njmax)
-        return mjx.make_data(self._mjx_model, impl="jax")
-
     def _tip_world(self, r: Readout):
         return r.peg_pos + r.peg_mat @ jnp.asarray(self._tip_local)
 

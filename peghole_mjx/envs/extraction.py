@@ -51,7 +51,7 @@ import jax.numpy as jnp
 from ml_collections import config_dict
 
 from peghole_mjx.control import ImpedanceParams, make_params
-from peghole_mjx.control.kinematics import newton_ik, rot_z
+from peghole_mjx.control.kinematics import rot_z
 from peghole_mjx.core.errors import UserInputError
 from peghole_mjx.envs import iiwa_constants as names
 from peghole_mjx.envs import stuck
@@ -294,19 +294,13 @@ class PegHoleEnv(PegHoleBase):
 
     # ------------------------------------------------------------------ reset
     def _solve_start(self, hole_pos, hole_mat):
-        """Joint angles with the peg inserted in a moved hole: Newton steps from the keyframe."""
-        d0 = self._make_data()
-        d0 = d0.replace(mocap_pos=d0.mocap_pos.at[self._hole_mocap].set(hole_pos))
-        return newton_ik(
-            self._mjx_model,
-            d0,
+        """Joint angles with the peg inserted in a moved hole: Newton steps from the keyframe,
+        in the engine's kinematics (:meth:`~peghole_mjx.sim.engines.MjxEngine.solve_ik`)."""
+        return self.engine.solve_ik(
             self._init_q[self._qadr],
-            self._qadr,
-            self._ctrl.dadr,
-            self._peg_body,
-            self._tip_local,
             pos_target=hole_pos + hole_mat @ jnp.array([0.0, 0.0, -(self._depth0_mm * MM)]),
             mat_target=hole_mat @ jnp.asarray(TOOL_DOWN_MAT),
+            point_local=self._tip_local,
             iterations=names.START_IK_ITERATIONS,
         )
 
@@ -315,12 +309,12 @@ class PegHoleEnv(PegHoleBase):
         return self.reset_finish(self.reset_start(rng))
 
     def reset_start(self, rng: jax.Array) -> dict[str, Any]:
-        """The first half of :meth:`reset`, pure JAX on every engine: the episode's draw, the
-        moved hole and the arm's joint angles with the peg inserted there (an MJX IK).
+        """The first half of :meth:`reset`: the episode's draw, the moved hole and the arm's
+        joint angles with the peg inserted there (the engine's IK: MJX's kinematics on the MJX
+        engines, MuJoCo C on ``mujoco``, where no MJX graph is compiled).
 
-        Kept apart so that a caller can compile it as its own graph: with the ``mujoco``
-        engine, a graph holding the engine's host callback is not kept in JAX's persistent
-        compilation cache, and this half is most of the reset's compile time."""
+        Kept apart so that a caller can compile it as its own graph: on the MJX engines this
+        half, MJX's IK, is most of the reset's compile time."""
         fixed = self.fixed_compliance
         draw = self.randomization_fn(rng, self._config.randomization, fixed["k_xy"])
         if stuck.enabled(self._config):

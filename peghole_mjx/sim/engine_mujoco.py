@@ -49,6 +49,7 @@ except ImportError:
 from peghole_mjx.control import ImpedanceController, ImpedanceParams
 from peghole_mjx.control.reference import impedance_torque, tool_centre
 from peghole_mjx.core.errors import UserInputError
+from peghole_mjx.core.rotations import rotvec_from_mat
 from peghole_mjx.sim.engines import FTReading, Readout, SceneIds, Sense
 
 STATE_SPEC = mujoco.mjtState.mjSTATE_INTEGRATION
@@ -172,6 +173,7 @@ class MujocoEngine:
         #: (the physics alone), read by benchmarks/perf/throughput.py; the number of substep
         #: calls and of reset calls (``init_calls``: the learner resets only where needed)
         self.timing = {"callback_s": 0.0, "batch_step_s": 0.0, "calls": 0, "init_calls": 0}
+        self.timing["ik_calls"] = 0
         #: opt-in torque record: set it to a list and every physics substep appends a copy of
         #: the worlds' ``ctrl`` as applied, ``(n, nu)`` with the call's worlds flattened in
         #: order (benchmarks/perf/engines.py replays them open loop in ``mujoco.rollout``,
@@ -287,6 +289,53 @@ class MujocoEngine:
         except mj_batch.SimulationError as exc:
             ok[np.asarray(exc.ids)] = False
         return ok
+
+    def _host_ik(self, point_local, iterations, q0, pos_target, mat_target):
+        """:meth:`solve_ik` on the host: the Newton steps of
+        :func:`peghole_mjx.control.kinematics.newton_ik` in float64, MuJoCo C's kinematics
+        (``Batch.forward`` to the position stage) and the engine's analytic Jacobian, all worlds
+        of the call at once; the minimum-norm step (``pinv``) as MJX's ``lstsq``."""
+        lead = pos_target.shape[:-1]
+        q = np.asarray(q0, float).reshape(-1, q0.shape[-1])
+        pos = np.asarray(pos_target, float).reshape(-1, 3)
+        mat = np.asarray(mat_target, float).reshape(-1, 3, 3)
+        local, body = np.asarray(point_local, float), self.ids.peg_body
+        with self._lock:
+            self.timing["ik_calls"] += 1
+            p = self._pool(q.shape[0])
+            p.batch.reset(stage=mujoco.mjtStage.mjSTAGE_NONE)
+            p.qpos[:] = self._q_default
+            for _ in range(iterations):
+                p.qpos[:, self.ids.qadr] = q
+                p.batch.forward(stage=mujoco.mjtStage.mjSTAGE_POS)
+                R = p.xmat[:, body].reshape(-1, 3, 3)
+                x = p.xpos[:, body] + R @ local
+                err = np.concatenate([pos - x, rotvec_from_mat(mat @ np.swapaxes(R, 1, 2))], 1)
+                J = self.centre_jacobian(p, x)
+                q = q + (np.linalg.pinv(J) @ err[..., None])[..., 0]
+        return q.astype(np.float32).reshape(lead + q.shape[1:])
+
+    def solve_ik(
+        self,
+        q0: jax.Array,
+        pos_target: jax.Array,
+        mat_target: jax.Array,
+        point_local,
+        iterations: int,
+    ) -> jax.Array:
+        """Arm joint angles that put ``point_local`` (peg body frame) at ``pos_target`` with
+        the peg body's rotation ``mat_target``: ``iterations`` Newton steps from ``q0`` in
+        MuJoCo C (float64), on the host (no MJX graph: the twin of
+        :meth:`peghole_mjx.sim.engines.MjxEngine.solve_ik`)."""
+        q0 = jnp.broadcast_to(q0, pos_target.shape[:-1] + q0.shape[-1:])
+        return jax.pure_callback(
+            functools.partial(self._host_ik, tuple(float(v) for v in point_local), int(iterations)),
+            jax.ShapeDtypeStruct(q0.shape, np.dtype(np.float32)),
+            q0,
+            pos_target,
+            mat_target,
+            vmap_method="broadcast_all",
+        )
 
     def _host_init(self, q_arm, hole_pos, hole_quat, *mass_scale):
         lead = q_arm.shape[:-1]

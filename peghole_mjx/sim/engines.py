@@ -4,6 +4,9 @@ The task (:class:`peghole_mjx.envs.extraction.PegHoleEnv`: action decoding, impe
 parameters, observation, reward, termination, randomisation) is written once. What belongs to
 an engine is only this:
 
+* :meth:`solve_ik`: the arm's joint angles that put a point of the peg at a pose (the reset's
+  start), by Newton steps in the engine's own kinematics (MJX on ``mjx``, MuJoCo C on
+  ``mujoco``: no MJX graph in the MuJoCo C path);
 * :meth:`init_data`: the physics state of an episode start (arm joints solved by the task's
   IK, the hole's mocap pose) with its derived quantities computed;
 * :meth:`substeps`: the control step's physics substeps, the impedance law
@@ -39,6 +42,7 @@ import mujoco
 import numpy as np
 
 from peghole_mjx.control import ImpedanceController, ImpedanceParams, Target
+from peghole_mjx.control.kinematics import newton_ik
 from peghole_mjx.core._mjx import WARP_AVAILABLE, mjx, tree_path_to_attr_str, warp_types
 from peghole_mjx.core.errors import UserInputError
 
@@ -290,6 +294,38 @@ class MjxEngine:
                 njmax=b["njmax"],
             )
         return mjx.make_data(self.model, impl=self.impl)
+
+    def ik_data(self):
+        """The ``mjx.Data`` the IK's kinematics start from (model defaults). MuJoCo Warp's
+        ``make_data`` takes the compiled ``mujoco.MjModel`` only (mujoco-mjx 3.17.0 raises
+        ValueError for an ``mjx.Model``); its buffers as configured, for one world."""
+        if self.impl == "warp":
+            return mjx.make_data(self.mj_model, impl="warp", **self._buffers)
+        return mjx.make_data(self.model, impl="jax")
+
+    def solve_ik(
+        self,
+        q0: jax.Array,
+        pos_target: jax.Array,
+        mat_target: jax.Array,
+        point_local,
+        iterations: int,
+    ) -> jax.Array:
+        """Arm joint angles that put ``point_local`` (peg body frame) at ``pos_target`` with
+        the peg body's rotation ``mat_target``: ``iterations`` Newton steps from ``q0`` in MJX's
+        kinematics (:func:`peghole_mjx.control.kinematics.newton_ik`)."""
+        return newton_ik(
+            self.model,
+            self.ik_data(),
+            q0,
+            self.ids.qadr,
+            self.ctrl.dadr,
+            self.ids.peg_body,
+            point_local,
+            pos_target=pos_target,
+            mat_target=mat_target,
+            iterations=iterations,
+        )
 
     def init_data(
         self, q_arm: jax.Array, hole_pos: jax.Array, hole_quat: jax.Array, mass_scale=None
