@@ -457,8 +457,13 @@ def test_warp_scenes_step_without_overflow(name, rep):
 
 
 def test_cylinder_needs_warp_one_line_error():
+    """MJX-JAX has no cylinder-box collision: the cylinder scene on engine mjx with impl jax
+    is refused in one line (MuJoCo C and MuJoCo Warp collide it)."""
+    over = {"representation": "cylinder", "engine": "mjx"}
     with pytest.raises(UserInputError, match="cannot run with impl='jax'"):
-        envs.load("DualExtract", config_overrides={"representation": "cylinder"})
+        envs.load("DualExtract", config_overrides=over)
+    c_engine = envs.load("DualExtract", config_overrides={**over, "engine": "mujoco"})
+    assert c_engine.representation == "cylinder"
     with pytest.raises(UserInputError, match="unknown collision representation"):
         envs.load("DualExtract", config_overrides={"representation": "sphere"})
     with pytest.raises(UserInputError, match="below the measured maximum"):
