@@ -477,3 +477,21 @@ def test_the_start_ik_is_traced_once_and_equals_the_inline_ik_bit_for_bit(monkey
     assert len(traced) > n_first  # traced again, inline in the reset's graph
     np.testing.assert_array_equal(np.asarray(q), np.asarray(q_inline))
     assert float(jnp.abs(q - q[:1]).max()) > 0  # the four starts differ (moved holes)
+
+
+def test_the_mjx_step_is_traced_once_per_process(monkeypatch):
+    """MJX-JAX's step is a jitted function of its own (``sim.engines._mjx_step``): the step
+    graph of a second env of the same scene reuses its trace instead of tracing MJX again."""
+    traced = []
+
+    def counted_step(m, d):
+        traced.append(1)
+        return engines.mjx.step(m, d)
+
+    monkeypatch.setattr(engines, "_mjx_step", jax.jit(counted_step))
+    keys = jax.random.split(jax.random.PRNGKey(0), 2)
+    for _ in range(2):
+        env = envs.load("RectExtract", config_overrides={"engine": "mjx"})
+        state = jax.eval_shape(jax.vmap(env.reset), keys)
+        jax.jit(jax.vmap(env.step)).lower(state, jnp.zeros((2, env.action_size)))
+    assert len(traced) == 1
