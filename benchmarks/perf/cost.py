@@ -94,7 +94,7 @@ def measure(
     """The cost entry of one env in one representation (see the module docstring);
     ``contact_cap``: another ``max_contact_points`` than the scene's measured default;
     ``geometry``: the env config's geometry changes (JSON, e.g. ``{"n_sides": 12}``)."""
-    over = {"representation": rep}
+    over = {"representation": rep, "engine": "mjx"}  # an MJX env (not the auto default)
     if geometry:
         over["geometry"] = geometry
     saved = dict(mjcf.CONTACT_CAPS)

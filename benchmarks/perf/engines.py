@@ -63,11 +63,14 @@ def run_mjx(
     """One throughput row of the env on MJX (``impl`` jax or warp): a jitted, scanned chunk
     of ``vmap(env.step)`` over ``worlds`` worlds, timed for at least ``min_time`` s."""
     gpu = gpu_kind()
-    overrides = {"impl": impl, **SCENE_OVERRIDES.get(scene, {}), **(engine_overrides or {})}
+    overrides = {"engine": "mjx", "impl": impl, **SCENE_OVERRIDES.get(scene, {})}
+    overrides |= engine_overrides or {}
     if representation:  # the env's default otherwise (dual: capsule)
         overrides["representation"] = representation
     if env is None:
         env = envs.load(SCENES[scene], config_overrides=overrides)
+        if env.engine.name != "mjx":  # an MJX row must never measure the auto default
+            raise RuntimeError(f"an mjx-{impl} row built a {env.engine.name} env")
     action = scripted_policy(env)(None, None)
     n_reset = worlds if (gpu or impl == "warp") else min(worlds, 8)
     t0 = time.perf_counter()

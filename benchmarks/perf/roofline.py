@@ -60,7 +60,8 @@ def roofline(scenes: list[str], hlo: bool = True) -> dict:
     """Per-world state size of each scene and the H100/H200 rooflines (printed + returned)."""
     out: dict = {"gpus": GPU_BANDWIDTH, "scenes": {}}
     for scene in scenes:
-        env = envs.load(SCENES[scene], config_overrides=SCENE_OVERRIDES.get(scene))
+        over = {**(SCENE_OVERRIDES.get(scene) or {}), "engine": "mjx"}  # the MJX-JAX state
+        env = envs.load(SCENES[scene], config_overrides=over)
         shape = jax.eval_shape(env.reset, jax.random.PRNGKey(0))
         data_b = tree_bytes(shape.data)
         state_b = tree_bytes(shape)

@@ -108,6 +108,7 @@ from benchmarks.perf.engines import (
 )
 from benchmarks.perf.roofline import print_roofline, roofline
 from peghole_mjx.core._mjx import WARP_AVAILABLE
+from peghole_mjx.files.provenance import commit
 
 #: this module, as run: ``python -m benchmarks.perf.throughput``
 MODULE = "benchmarks.perf.throughput"
@@ -553,6 +554,8 @@ def main(argv: list[str] | None = None) -> int:
             "quick": args.quick,
             "min_time_s": args.min_time,
             "total_wall_s": round(time.perf_counter() - t_start, 1),
+            "commit": commit(),
+            "config": {k: v for k, v in vars(args).items() if not k.startswith("_")},
         }
     )
     meta = {
@@ -566,6 +569,10 @@ def main(argv: list[str] | None = None) -> int:
         else "unmeasured here (no GPU): run the same command on "
         "a GPU machine (pip install -e '.[bench,warp]'), it writes throughput_gpu-<kind>.csv",
         "rows": details,
+        # the newest run's (each run keeps its own in ``runs``)
+        "command": runs[-1]["command"],
+        "commit": runs[-1]["commit"],
+        "config": "see runs; each run records its config, command and commit",
     }
     side.write_text(json.dumps(meta, indent=2, default=float) + "\n")
     print(f"wrote {out} ({len(rows)} rows) and {side}")
