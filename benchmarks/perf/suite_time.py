@@ -145,6 +145,7 @@ RECORDED: list[dict] = [
             (2201, "2026-12-05"),
             (3008, "2026-12-05"),
             (3237, "2026-12-05"),
+            (2610, "2026-12-05"),
         )
     ],
     {
@@ -188,6 +189,47 @@ RECORDED: list[dict] = [
         "engine among a policy's task differences; mended in the next commit), 15 skipped",
         "source": "the run's log (pytest's summary line), 17:18-18:01 UTC; the worktree "
         "checkout, not a git archive copy",
+    },
+    {
+        "kind": "suite_loaded",
+        "label": "2-core CPU, warm compile cache, warp-lang installed (its Warp tests ran in "
+        "the suite), a profiling job beside it for its first minutes: not a CI-like run, so "
+        "outside the cold-cache range",
+        "wall_s": 2401,
+        "device": "cpu (2 cores, x86_64)",
+        "versions": _VERSIONS_WARP,
+        "date": "2026-12-05",
+        "command": " ".join(SUITE_COMMAND) + " -p no:cacheprovider --durations=80",
+        "config": {
+            **_SUITE_CONFIG,
+            "warp_lang_installed": True,
+            "compile_cache": "warm: the suite's cache folder kept from earlier runs",
+            "tree": "the working tree at the commit",
+        },
+        "commit": "c505680",
+        "outcome": "1377 passed, 1 failed (the cylinder scene's refusal, which the MuJoCo C "
+        "engine no longer needs; mended in the next commit), 15 skipped",
+        "source": "the run's log (pytest's summary line), 19:16-19:56 UTC",
+    },
+    {
+        "kind": "suite_loaded",
+        "label": "free 2-core CPU, warm compile cache, warp-lang installed (its Warp tests ran "
+        "in the suite): not a CI-like run, so outside the cold-cache range",
+        "wall_s": 2836,
+        "device": "cpu (2 cores, x86_64)",
+        "versions": _VERSIONS_WARP,
+        "date": "2026-12-05",
+        "command": " ".join(SUITE_COMMAND) + " -p no:cacheprovider --durations=60",
+        "config": {
+            **_SUITE_CONFIG,
+            "warp_lang_installed": True,
+            "compile_cache": "warm: the suite's cache folder kept from earlier runs",
+            "tree": "the working tree at the commit",
+        },
+        "commit": "9bdc311",
+        "outcome": "1378 passed, 2 failed (the throughput command's record could not hold a "
+        "path, and a word of a log in a result file; mended in the next commit), 15 skipped",
+        "source": "the run's log (pytest's summary line), 20:37-21:25 UTC",
     },
     {
         "kind": "demo",

@@ -555,7 +555,11 @@ def main(argv: list[str] | None = None) -> int:
             "min_time_s": args.min_time,
             "total_wall_s": round(time.perf_counter() - t_start, 1),
             "commit": commit(),
-            "config": {k: v for k, v in vars(args).items() if not k.startswith("_")},
+            "config": {
+                k: str(v) if isinstance(v, Path) else v
+                for k, v in vars(args).items()
+                if not k.startswith("_")
+            },
         }
     )
     meta = {
