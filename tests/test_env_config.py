@@ -311,7 +311,7 @@ def test_impl_and_warp_buffers_are_read(monkeypatch):
     for over in ({}, {"naconmax": 32, "njmax": 128}):
         c = apply_overrides(envs.get_default_config(ENV), {"impl": "warp", **over})
         engine = engines.MjxEngine(None, None, None, c.impl, c.naconmax, c.njmax, mj_model="mj")
-        engine.ik_data()  # the reset IK's data (one world)
+        engine.make_data(worlds=1)  # the reset IK's data (one world)
     assert seen == [
         ("mj", {"impl": "warp", "naconmax": 64, "njmax": 256}),
         ("mj", {"impl": "warp", "naconmax": 32, "njmax": 128}),

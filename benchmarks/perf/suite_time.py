@@ -63,6 +63,33 @@ _CI_UNKNOWN = {
 _CI_COMMAND = ".ci/run (pip install -e .[dev], the suite, ruff check, ruff format --check, "
 _CI_COMMAND += "tests/test_playground.py)"
 
+
+def _warm_local_suite(
+    wall_s: int, label: str, durations: int, commit: str, outcome: str, source: str
+) -> dict:
+    """A local run of the README's suite on 2026-12-05 with warp-lang installed (its Warp tests
+    ran in it) and the compile cache kept from earlier runs: not CI-like, so outside the
+    cold-cache range."""
+    return {
+        "kind": "suite_loaded",
+        "label": label,
+        "wall_s": wall_s,
+        "device": "cpu (2 cores, x86_64)",
+        "versions": _VERSIONS_WARP,
+        "date": "2026-12-05",
+        "command": " ".join(SUITE_COMMAND) + f" -p no:cacheprovider --durations={durations}",
+        "config": {
+            **_SUITE_CONFIG,
+            "warp_lang_installed": True,
+            "compile_cache": "warm: the suite's cache folder kept from earlier runs",
+            "tree": "the working tree at the commit",
+        },
+        "commit": commit,
+        "outcome": outcome,
+        "source": source,
+    }
+
+
 #: the figures measured before this record existed, with where each was recorded
 RECORDED: list[dict] = [
     {
@@ -148,89 +175,49 @@ RECORDED: list[dict] = [
             (2610, "2026-12-05"),
         )
     ],
-    {
-        "kind": "suite_loaded",
-        "label": "2-core CPU, warm compile cache, warp-lang installed (its Warp tests ran in "
+    _warm_local_suite(
+        3707,
+        "2-core CPU, warm compile cache, warp-lang installed (its Warp tests ran in "
         "the suite), the worktree: not a CI-like run, so outside the cold-cache range",
-        "wall_s": 3707,
-        "device": "cpu (2 cores, x86_64)",
-        "versions": _VERSIONS_WARP,
-        "date": "2026-12-05",
-        "command": " ".join(SUITE_COMMAND) + " -p no:cacheprovider --durations=120",
-        "config": {
-            **_SUITE_CONFIG,
-            "warp_lang_installed": True,
-            "compile_cache": "warm: the suite's cache folder kept from earlier runs",
-            "tree": "the working tree at the commit",
-        },
-        "commit": "39c1b94",
-        "outcome": "1357 passed, 2 failed (a stale census of broad handlers, fixed in 132e925; "
+        120,
+        "39c1b94",
+        "1357 passed, 2 failed (a stale census of broad handlers, fixed in 132e925; "
         "a SIGINT test past its 30 s, not reproduced in five reruns), 15 skipped",
-        "source": "the run's log (pytest's summary line), 13:07-14:09 UTC; the worktree "
+        "the run's log (pytest's summary line), 13:07-14:09 UTC; the worktree "
         "checkout, not a git archive copy",
-    },
-    {
-        "kind": "suite_loaded",
-        "label": "free 2-core CPU, warm compile cache, warp-lang installed (its Warp tests ran "
+    ),
+    _warm_local_suite(
+        2589,
+        "free 2-core CPU, warm compile cache, warp-lang installed (its Warp tests ran "
         "in the suite), the worktree: not a CI-like run, so outside the cold-cache range",
-        "wall_s": 2589,
-        "device": "cpu (2 cores, x86_64)",
-        "versions": _VERSIONS_WARP,
-        "date": "2026-12-05",
-        "command": " ".join(SUITE_COMMAND) + " -p no:cacheprovider --durations=60",
-        "config": {
-            **_SUITE_CONFIG,
-            "warp_lang_installed": True,
-            "compile_cache": "warm: the suite's cache folder kept from earlier runs",
-            "tree": "the working tree at the commit",
-        },
-        "commit": "734fac7",
-        "outcome": "1368 passed, 8 failed (tests that expected MJX as the env default or the "
+        60,
+        "734fac7",
+        "1368 passed, 8 failed (tests that expected MJX as the env default or the "
         "engine among a policy's task differences; mended in the next commit), 15 skipped",
-        "source": "the run's log (pytest's summary line), 17:18-18:01 UTC; the worktree "
+        "the run's log (pytest's summary line), 17:18-18:01 UTC; the worktree "
         "checkout, not a git archive copy",
-    },
-    {
-        "kind": "suite_loaded",
-        "label": "2-core CPU, warm compile cache, warp-lang installed (its Warp tests ran in "
+    ),
+    _warm_local_suite(
+        2401,
+        "2-core CPU, warm compile cache, warp-lang installed (its Warp tests ran in "
         "the suite), a profiling job beside it for its first minutes: not a CI-like run, so "
         "outside the cold-cache range",
-        "wall_s": 2401,
-        "device": "cpu (2 cores, x86_64)",
-        "versions": _VERSIONS_WARP,
-        "date": "2026-12-05",
-        "command": " ".join(SUITE_COMMAND) + " -p no:cacheprovider --durations=80",
-        "config": {
-            **_SUITE_CONFIG,
-            "warp_lang_installed": True,
-            "compile_cache": "warm: the suite's cache folder kept from earlier runs",
-            "tree": "the working tree at the commit",
-        },
-        "commit": "c505680",
-        "outcome": "1377 passed, 1 failed (the cylinder scene's refusal, which the MuJoCo C "
+        80,
+        "c505680",
+        "1377 passed, 1 failed (the cylinder scene's refusal, which the MuJoCo C "
         "engine no longer needs; mended in the next commit), 15 skipped",
-        "source": "the run's log (pytest's summary line), 19:16-19:56 UTC",
-    },
-    {
-        "kind": "suite_loaded",
-        "label": "free 2-core CPU, warm compile cache, warp-lang installed (its Warp tests ran "
+        "the run's log (pytest's summary line), 19:16-19:56 UTC",
+    ),
+    _warm_local_suite(
+        2836,
+        "free 2-core CPU, warm compile cache, warp-lang installed (its Warp tests ran "
         "in the suite): not a CI-like run, so outside the cold-cache range",
-        "wall_s": 2836,
-        "device": "cpu (2 cores, x86_64)",
-        "versions": _VERSIONS_WARP,
-        "date": "2026-12-05",
-        "command": " ".join(SUITE_COMMAND) + " -p no:cacheprovider --durations=60",
-        "config": {
-            **_SUITE_CONFIG,
-            "warp_lang_installed": True,
-            "compile_cache": "warm: the suite's cache folder kept from earlier runs",
-            "tree": "the working tree at the commit",
-        },
-        "commit": "9bdc311",
-        "outcome": "1378 passed, 2 failed (the throughput command's record could not hold a "
+        60,
+        "9bdc311",
+        "1378 passed, 2 failed (the throughput command's record could not hold a "
         "path, and a word of a log in a result file; mended in the next commit), 15 skipped",
-        "source": "the run's log (pytest's summary line), 20:37-21:25 UTC",
-    },
+        "the run's log (pytest's summary line), 20:37-21:25 UTC",
+    ),
     {
         "kind": "demo",
         "label": "2-core CPU shared with two short jobs (140 % CPU to the demo)",

@@ -181,7 +181,7 @@ class MujocoEngine:
         #: (the physics alone), read by benchmarks/perf/throughput.py; the number of substep
         #: calls and of reset calls (``init_calls``: the learner resets only where needed)
         self.timing = {"callback_s": 0.0, "batch_step_s": 0.0, "calls": 0, "init_calls": 0}
-        self.timing["ik_calls"] = 0
+        self.timing |= {"ik_calls": 0}  # the reset's IK calls (solve_ik), counted alike
         #: opt-in torque record: set it to a list and every physics substep appends a copy of
         #: the worlds' ``ctrl`` as applied, ``(n, nu)`` with the call's worlds flattened in
         #: order (benchmarks/perf/engines.py replays them open loop in ``mujoco.rollout``,

@@ -285,33 +285,26 @@ class MjxEngine:
         self.ids = ids
         self.impl = impl
         self._buffers = {"naconmax": naconmax, "njmax": njmax} if impl == "warp" else {}
+        jitted = impl == "jax"  # MuJoCo Warp: the plain calls (module note at _mjx_step)
+        self._step = _mjx_step if jitted else mjx.step
+        self._forward = _mjx_forward if jitted else mjx.forward
 
     @property
     def model(self) -> mjx.Model:
         """The model the physics steps with: the env's current one (see ``__init__``)."""
         return self._model() if callable(self._model) else self._model
 
-    def make_data(self):
+    def make_data(self, worlds: int | None = None):
         """An ``mjx.Data`` at the model's defaults (no forward pass). MuJoCo Warp's contact
-        pool holds ``naconmax`` contacts per world for every world of the batch being traced
-        (:func:`batch_worlds`); ``njmax`` is per world."""
+        pool holds ``naconmax`` contacts per world for ``worlds`` worlds (None: every world of
+        the batch being traced, :func:`batch_worlds`); ``njmax`` is per world."""
         if self.impl == "warp":  # Warp's make_data takes the MjModel, not an mjx.Model
             b = self._buffers
+            n = batch_worlds() if worlds is None else worlds
             return mjx.make_data(
-                self.mj_model,
-                impl="warp",
-                naconmax=b["naconmax"] * batch_worlds(),
-                njmax=b["njmax"],
+                self.mj_model, impl="warp", naconmax=b["naconmax"] * n, njmax=b["njmax"]
             )
         return mjx.make_data(self.model, impl=self.impl)
-
-    def ik_data(self):
-        """The ``mjx.Data`` the IK's kinematics start from (model defaults). MuJoCo Warp's
-        ``make_data`` takes the compiled ``mujoco.MjModel`` only (mujoco-mjx 3.17.0 raises
-        ValueError for an ``mjx.Model``); its buffers as configured, for one world."""
-        if self.impl == "warp":
-            return mjx.make_data(self.mj_model, impl="warp", **self._buffers)
-        return mjx.make_data(self.model, impl="jax")
 
     def solve_ik(
         self,
@@ -326,7 +319,7 @@ class MjxEngine:
         kinematics (:func:`peghole_mjx.control.kinematics.newton_ik`)."""
         return newton_ik(
             self.model,
-            self.ik_data(),
+            self.make_data(worlds=1),  # the kinematics' start (the IK has no contacts)
             q0,
             self.ids.qadr,
             self.ctrl.dadr,
@@ -350,9 +343,6 @@ class MjxEngine:
             mocap_quat=data.mocap_quat.at[i.hole_mocap].set(hole_quat),
         )
         return self._forward(self.scaled_mass(self.model, mass_scale), data)
-
-    def _forward(self, m, d):
-        return _mjx_forward(m, d) if self.impl == "jax" else mjx.forward(m, d)
 
     def scaled_mass(self, m, mass_scale):
         """``m`` with the peg's mass and inertia times ``mass_scale`` (None: ``m`` itself). Under
@@ -409,7 +399,7 @@ class MjxEngine:
         def substep(d, pos):
             target = Target(pos=pos, mat=target_mat, vel=target_vel)
             d, _ = self.ctrl.apply(law_m, d, target, params)
-            d = _mjx_step(m, d) if self.impl == "jax" else mjx.step(m, d)
+            d = self._step(m, d)
             return d, sense(self.ft_reading(d))
 
         return jax.lax.scan(substep, data, targets)
