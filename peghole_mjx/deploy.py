@@ -296,6 +296,12 @@ class DeployedPolicy:
         ]
         self._tip_step = np.asarray(dec["tip_step_m"], np.float64)
         self._ff_step = float(dec["force_ff_step_N"])
+        residual = dec.get("residual")  # files written before the entry: no residual
+        self._residual = (
+            None
+            if residual is None
+            else (np.asarray(residual["base"], np.float64), float(residual["scale"]))
+        )
         self._ff_cap = np.asarray(dec["force_ff_cap_N"], np.float64)
         self._gains = {
             name: (int(g["index"]), float(g["lo"]), float(g["hi"]))
@@ -350,6 +356,12 @@ class DeployedPolicy:
                 bad(f"{name} must be {shape} finite numbers")
         if np.any(self._tip_step < 0) or np.any(self._ff_cap < 0) or self._ff_step < 0:
             bad("a step or cap is negative")
+        if self._residual is not None:
+            base, scale = self._residual
+            if base.shape != (self.action_size,) or not np.all(np.abs(base) <= 1.0):
+                bad(f"decode.residual.base must be {self.action_size} numbers in [-1, 1]")
+            if not (np.isfinite(scale) and scale > 0):
+                bad(f"decode.residual.scale must be a positive number, got {scale!r}")
         if not (self._peg_length > 0 and self._peg_mass > 0):
             bad("the peg's length and mass must be positive")
         ranges = self._ranges()
@@ -505,13 +517,17 @@ class DeployedPolicy:
                 f"({self.action_size},) (a batch or a column is not one action)"
             )
         a = np.clip(np.where(np.isnan(a), 0.0, a), -1.0, 1.0)
+        applied = a
+        if self._residual is not None:  # the env's residual_action
+            base, scale = self._residual
+            applied = np.clip(base + scale * a, -1.0, 1.0)
         # the new state is computed and checked first: a refused command changes nothing
         prev = self._cmd_tip
-        tip = prev + a[:3] * self._tip_step
-        ff = np.clip(self._ff + a[3:6] * self._ff_step, -self._ff_cap, self._ff_cap)
+        tip = prev + applied[:3] * self._tip_step
+        ff = np.clip(self._ff + applied[3:6] * self._ff_step, -self._ff_cap, self._ff_cap)
         gains = {"k_xy": self._k_xy, "k_rot": self._k_rot, "L_C": self._L_C}
         for name, (i, lo, hi) in self._gains.items():
-            gains[name] = min(max(lo + 0.5 * (a[i] + 1.0) * (hi - lo), lo), hi)
+            gains[name] = min(max(lo + 0.5 * (applied[i] + 1.0) * (hi - lo), lo), hi)
         ranges = self._ranges()
         for name, key in (("k_xy", "k_xy_N_m"), ("k_rot", "k_rot_Nm_rad"), ("L_C", "L_C_m")):
             _in_range(gains[name], f"decoded {key}", *ranges[key])

@@ -79,6 +79,13 @@ def probe_action(c):
     return np.concatenate(out)
 
 
+def probe_residual(c):
+    """The decoded action of a residual env (``action.residual`` on)."""
+    c = c.copy_and_resolve_references()
+    c.action.residual = True
+    return probe_action(c)
+
+
 def probe_params(c):
     return _flat(extraction.impedance_params(c, 300.0, 30.0, 0.0, jnp.zeros(3), jnp.zeros(7)))
 
@@ -161,6 +168,8 @@ PURE = {
     "action.max_speed_m_s": (0.05, [probe_action]),
     "action.max_force_step_N": (3.0, [probe_action]),
     "action.max_ff_xy_N": (10.0, [probe_action]),
+    "action.residual": (True, [probe_action]),
+    "action.residual_scale": (0.3, [probe_residual]),
     "limits.max_force_N": ((25.0, 25.0, 70.0), [probe_action]),
     "compliance_strategy": (False, [probe_action]),
     "compliance_rotation": (False, [probe_action]),

@@ -135,6 +135,9 @@ ENV_RANGES: dict[str, Range] = {
         "action.max_speed_m_s": Range(0.0, 1.0, lo_open=True, why_lo="the pull would never move"),
         "action.max_force_step_N": Range(0.0, 100.0),
         "action.max_ff_xy_N": Range(0.0, 500.0),
+        "action.residual_scale": Range(
+            0.0, 2.0, lo_open=True, why_lo="the residual policy would have no effect"
+        ),
         # the impedance layer's wrench caps: at most 25x the thesis's (20/20/60 N, 3/3/1 N m)
         "limits.max_force_N": Range(0.0, 500.0, lo_open=True),
         "limits.max_torque_Nm": Range(0.0, 75.0, lo_open=True),

@@ -83,6 +83,11 @@ def base_config(preset: str) -> config_dict.ConfigDict:
             # E11 by default; DualExtract's training profiles lower it: docs/guide/training.md,
             # "Lateral feed-forward bound")
             max_ff_xy_N=LIMITS.max_force_N[0],
+            # residual actions: the step applies the scripted pull (20 mm/s, no lateral
+            # offset or feed-forward, the fixed gains) plus residual_scale x the action, so an
+            # untrained policy already extracts (envs/extraction.py residual_action)
+            residual=False,
+            residual_scale=0.25,
         ),
         # the impedance layer's caps of the commanded Cartesian wrench, compliance frame
         # (control/limits.py, E11): force x, y, z (N) and torque about x, y, z (N m). The
@@ -413,6 +418,7 @@ FLAGS = frozenset(
         "obs.prev_action",
         "obs.commands",
         "stuck.enabled",
+        "action.residual",
     }
 )
 #: entries that are text (``representation``: or None, the preset's default); their values are

@@ -48,6 +48,7 @@ from typing import Any
 
 import jax
 import jax.numpy as jnp
+import numpy as np
 from ml_collections import config_dict
 
 from peghole_mjx.control import ImpedanceParams, make_params
@@ -70,6 +71,11 @@ from peghole_mjx.envs.reward import outcome_terms, reward_terms
 from peghole_mjx.geometry.mjcf import TOOL_DOWN_MAT
 from peghole_mjx.geometry.specs import MM
 from peghole_mjx.sim.engines import world_where
+
+
+#: the scripted baseline's constant pulling speed (thesis: 150 mm in about 7.6 s); with
+#: ``action.residual`` the policy's action is an offset from this pull
+SCRIPTED_SPEED_M_S = 0.02
 
 
 def clean_action(action: jax.Array) -> jax.Array:
@@ -119,14 +125,40 @@ def fixed_compliance(c: config_dict.ConfigDict) -> dict[str, float]:
     return {"k_xy": s.k_xy_N_m, "k_rot": s.k_rot_Nm_rad, "L_C": s.compliance_centre_mm * MM}
 
 
+def scripted_action(
+    c: config_dict.ConfigDict, compliance_actions, speed_m_s: float = SCRIPTED_SPEED_M_S
+) -> np.ndarray:
+    """The action (eq 4.3 layout, before any residual) of the scripted baseline: a straight
+    pull at ``speed_m_s``, no lateral offset, no feed-forward, the compliance-strategy gains
+    held at :func:`fixed_compliance`'s values."""
+    a = np.zeros(6 + len(compliance_actions), np.float32)
+    a[2] = speed_m_s / c.action.max_speed_m_s
+    fixed = fixed_compliance(c)
+    for name, (i, lo, hi) in compliance_actions.items():
+        a[i] = 2 * (fixed[name] - lo) / (hi - lo) - 1
+    return np.clip(a, -1.0, 1.0)
+
+
+def residual_action(action, c: config_dict.ConfigDict, compliance_actions) -> jax.Array:
+    """The action the step applies: ``action`` itself, or with ``action.residual`` the
+    scripted pull plus ``action.residual_scale`` times it (a residual policy: Johannink et
+    al. 2019, "Residual Reinforcement Learning for Robot Control"), clipped to [-1, 1]."""
+    a = clean_action(action)
+    if not c.action.residual:
+        return a
+    base = jnp.asarray(scripted_action(c, compliance_actions))
+    return jnp.clip(base + c.action.residual_scale * a, -1.0, 1.0)
+
+
 def decode_action(action, info, c: config_dict.ConfigDict, compliance_actions):
     """Commanded tip pose, feed-forward force, k_xy, K_theta and L_C after this action.
 
     ``compliance_actions``: :attr:`PegHoleEnv.compliance_actions` (index and range of each
     learned gain). The feed-forward force is held within ``limits.max_force_N``, its lateral
-    components also within ``action.max_ff_xy_N``.
+    components also within ``action.max_ff_xy_N``. With ``action.residual`` the action is an
+    offset from the scripted pull (:func:`residual_action`).
     """
-    a = clean_action(action)
+    a = residual_action(action, c, compliance_actions)
     H = info["hole_mat"]
     dxy = a[:2] * c.action.max_step_offset_mm * MM
     dz = a[2] * c.action.max_speed_m_s * c.ctrl_dt

@@ -31,7 +31,7 @@ from peghole_mjx.core import memory
 from peghole_mjx.core import progress as prog
 from peghole_mjx.core.errors import UserInputError
 from peghole_mjx.envs.config import leaves
-from peghole_mjx.envs.extraction import PegHoleEnv
+from peghole_mjx.envs.extraction import SCRIPTED_SPEED_M_S, PegHoleEnv, scripted_action
 from peghole_mjx.envs.metrics import (
     STATS,
     accumulate_return,
@@ -44,23 +44,26 @@ from peghole_mjx.sim.engines import batch_reset, select_worlds
 
 Policy = Callable[[jax.Array, jax.Array], jax.Array]
 
-#: the scripted baseline's constant pulling speed (thesis: 150 mm in about 7.6 s)
-SCRIPTED_SPEED_M_S = 0.02
-
-
 @functools.lru_cache(maxsize=16)
 def scripted_policy(env: PegHoleEnv, speed_m_s: float = SCRIPTED_SPEED_M_S) -> Policy:
-    """Straight pull at ``speed_m_s`` with the env's fixed stiffness and compliance centre.
+    """Straight pull at ``speed_m_s`` with the env's fixed stiffness and compliance centre
+    (:func:`~peghole_mjx.envs.extraction.scripted_action`); on a residual env
+    (``action.residual``) the residual that makes the step apply it (zero at the default
+    speed).
 
     Cached per env, so rollouts of the baseline reuse their compiled runner.
     """
     c = env.config
-    a = np.zeros(env.action_size, np.float32)
-    a[2] = speed_m_s / c.action.max_speed_m_s
-    # with the compliance strategy: hold k_xy, K_theta and L_C at the env's fixed values
-    fixed = env.fixed_compliance
-    for name, (i, lo, hi) in env.compliance_actions.items():
-        a[i] = 2 * (fixed[name] - lo) / (hi - lo) - 1
+    a = scripted_action(c, env.compliance_actions, speed_m_s)
+    if c.action.residual:
+        base = scripted_action(c, env.compliance_actions)
+        a = (a - base) / c.action.residual_scale
+        if np.any(np.abs(a) > 1.0 + 1e-6):
+            raise UserInputError(
+                f"a scripted pull at {speed_m_s:g} m/s is beyond this residual env's reach "
+                f"(action.residual_scale {c.action.residual_scale:g} about the "
+                f"{SCRIPTED_SPEED_M_S:g} m/s pull)"
+            )
     action = jnp.asarray(np.clip(a, -1, 1))
     return lambda obs, rng: action
 

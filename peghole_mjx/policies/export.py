@@ -65,6 +65,7 @@ from peghole_mjx.deploy import (
     read_spec,
 )
 from peghole_mjx.envs import iiwa_constants as names
+from peghole_mjx.envs.extraction import scripted_action
 from peghole_mjx.envs.metrics import EPISODE_METRICS, EPISODE_RECORD, summarize
 from peghole_mjx.envs.rollout import episode_keys, make_runner, rollout
 from peghole_mjx.files import fileio
@@ -255,6 +256,15 @@ def observation_entries(env) -> list[dict[str, Any]]:
     return out
 
 
+def _residual_spec(env) -> dict[str, Any] | None:
+    """``decode.residual``: the scripted action and the scale of a residual policy, or None."""
+    c = env.config
+    if not c.action.residual:
+        return None
+    base = scripted_action(c, env.compliance_actions)
+    return {"base": [float(v) for v in base], "scale": float(c.action.residual_scale)}
+
+
 def action_spec(bundle: PolicyBundle, env, onnx_sha256: str) -> dict[str, Any]:
     """The content of ``action.json`` for ``bundle`` in its training env ``env``."""
     c = env.config
@@ -344,12 +354,15 @@ def action_spec(bundle: PolicyBundle, env, onnx_sha256: str) -> dict[str, Any]:
         "action": {
             "size": int(net["action_size"]),
             "range": [-1.0, 1.0],
-            "clean": "NaN -> 0, then clipped to [-1, 1]",
+            "clean": "NaN -> 0, then clipped to [-1, 1]; with decode.residual: clip(base + "
+            "scale * a, -1, 1) before the entries' mappings",
             "entries": entries,
         },
         "decode": {
             "tip_step_m": [step_xy, step_xy, step_z],
             "force_ff_step_N": float(c.action.max_force_step_N),
+            # a residual policy (env action.residual): the scripted pull its action offsets
+            "residual": _residual_spec(env),
             "force_ff_cap_N": [min(fx, ff_xy), min(fy, ff_xy), fz],
             "learned_gains": {
                 name: {"index": i, "lo": float(lo), "hi": float(hi), "unit": units[name]}
