@@ -72,7 +72,6 @@ from peghole_mjx.geometry.mjcf import TOOL_DOWN_MAT
 from peghole_mjx.geometry.specs import MM
 from peghole_mjx.sim.engines import world_where
 
-
 #: the scripted baseline's constant pulling speed (thesis: 150 mm in about 7.6 s); with
 #: ``action.residual`` the policy's action is an offset from this pull
 SCRIPTED_SPEED_M_S = 0.02

@@ -44,6 +44,7 @@ from peghole_mjx.sim.engines import batch_reset, select_worlds
 
 Policy = Callable[[jax.Array, jax.Array], jax.Array]
 
+
 @functools.lru_cache(maxsize=16)
 def scripted_policy(env: PegHoleEnv, speed_m_s: float = SCRIPTED_SPEED_M_S) -> Policy:
     """Straight pull at ``speed_m_s`` with the env's fixed stiffness and compliance centre
