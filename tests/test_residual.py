@@ -111,3 +111,25 @@ def test_a_deployed_residual_policy_decodes_as_the_env(tmp_path):
     (folder / "action.json").write_text(json.dumps(spec))
     with pytest.raises(CorruptFileError, match=r"decode.residual.base must be 8 numbers in \[-1"):
         DeployedPolicy(folder)
+
+
+def test_a_residual_policy_starts_as_the_scripted_pull():
+    """zero_action_mean: the deterministic action is 0 on any observation, the exploration
+    scale as drawn."""
+    import jax
+    from brax.training.acme import running_statistics, specs
+    from brax.training.agents.sac import networks as sac_networks
+
+    from peghole_mjx.training.sac import zero_action_mean
+
+    nets = sac_networks.make_sac_networks(9, 8, hidden_layer_sizes=(32, 32))
+    params = nets.policy_network.init(jax.random.PRNGKey(0))
+    norm = running_statistics.init_state(specs.Array((9,), jnp.float32))
+    obs = jax.random.normal(jax.random.PRNGKey(1), (64, 9)) * 3.0
+    before = nets.policy_network.apply(norm, params, obs)
+    after = nets.policy_network.apply(norm, zero_action_mean(params, 8), obs)
+    assert float(jnp.abs(before[:, :8]).max()) > 0.1  # drawn weights: a bias of order 0.1-1
+    np.testing.assert_array_equal(np.asarray(after[:, :8]), 0.0)
+    np.testing.assert_array_equal(np.asarray(after[:, 8:]), np.asarray(before[:, 8:]))
+    mode = nets.parametric_action_distribution.mode(after)
+    np.testing.assert_array_equal(np.asarray(mode), 0.0)

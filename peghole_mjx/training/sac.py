@@ -69,6 +69,24 @@ AXIS = "i"
 
 
 @flax.struct.dataclass
+def zero_action_mean(policy_params, action_size: int):
+    """Policy parameters whose action mean is 0 for every observation: the last layer's
+    weights and bias of the mean (``loc``, the first ``action_size`` outputs of Brax's
+    ``NormalTanhDistribution``) set to zero, its scale left as drawn. A residual policy
+    (env ``action.residual``) then starts as the scripted pull, with exploration noise about
+    it, as residual RL does (Silver et al. 2018, "Residual Policy Learning"): drawn weights
+    give each action a constant bias of order 0.1-1 that the feed-forward and offset
+    integrators sum into a jam."""
+    layers = dict(policy_params["params"])
+    last = max(layers, key=lambda name: int(name.rsplit("_", 1)[1]))
+    w, b = layers[last]["kernel"], layers[last]["bias"]
+    layers[last] = {
+        "kernel": w.at[:, :action_size].set(0.0),
+        "bias": b.at[:action_size].set(0.0),
+    }
+    return {**policy_params, "params": layers}
+
+
 class TrainingState:
     """Learner state (replicated on every device)."""
 
@@ -202,6 +220,8 @@ class SACTrainer:
         cfg = self.cfg
         kp, kq = jax.random.split(learner_key)
         policy_params = self.nets.policy_network.init(kp)
+        if self.env.config.action.residual:
+            policy_params = zero_action_mean(policy_params, self.env.action_size)
         q_params = self.nets.q_network.init(kq)
         alpha0 = cfg.alpha_init if cfg.alpha == "auto" else float(cfg.alpha)
         log_alpha = jnp.asarray(jnp.log(alpha0), jnp.float32)
