@@ -68,7 +68,6 @@ from peghole_mjx.training.critics import with_critic
 AXIS = "i"
 
 
-@flax.struct.dataclass
 def zero_action_mean(policy_params, action_size: int):
     """Policy parameters whose action mean is 0 for every observation: the last layer's
     weights and bias of the mean (``loc``, the first ``action_size`` outputs of Brax's
@@ -87,6 +86,7 @@ def zero_action_mean(policy_params, action_size: int):
     return {**policy_params, "params": layers}
 
 
+@flax.struct.dataclass
 class TrainingState:
     """Learner state (replicated on every device)."""
 
