@@ -243,3 +243,50 @@ def test_a_time_out_is_bootstrapped_under_the_outcome_reward(seeds_run):
     last = np.asarray(rows.next_observation)[-4:]
     first = np.asarray(carry.env_state.obs[0])
     assert np.abs(last - first).max() > 0  # the true next observation, not the reset's
+
+
+def test_actor_delay_holds_the_actor_and_temperature_while_the_critics_learn():
+    """``actor_delay_updates`` 2: updates 1-2 move only the critics, update 3 the actor too."""
+    from brax.training.types import Transition
+
+    from peghole_mjx.envs import load
+    from peghole_mjx.training.sac import AXIS, SACTrainer
+
+    cfg = load_train_config(
+        "RectExtract", "quick", {**TINY, "actor_delay_updates": 2}, compliance_strategy=True
+    )
+    trainer = SACTrainer(load(cfg.env, config_overrides=cfg.env_overrides), cfg)
+    ts = trainer.learner_state(jax.random.PRNGKey(0))
+    n, o, a = 32, trainer.obs_size, trainer.env.action_size
+    ks = jax.random.split(jax.random.PRNGKey(1), 4)
+    batch = Transition(
+        observation=jax.random.normal(ks[0], (n, o)),
+        action=jax.random.uniform(ks[1], (n, a), minval=-1.0, maxval=1.0),
+        reward=jax.random.normal(ks[2], (n,)),
+        discount=jnp.ones((n,)),
+        next_observation=jax.random.normal(ks[3], (n, o)),
+        extras={"state_extras": {"truncation": jnp.zeros((n,))}, "policy_extras": {}},
+    )
+    step = jax.jit(jax.vmap(trainer._sgd_step, axis_name=AXIS))
+    one = jax.tree.map(lambda x: jnp.asarray(x)[None], ((ts, jax.random.PRNGKey(2)), batch))
+    history = []
+    for _ in range(3):
+        (state, key), _ = step(*one)
+        history.append(jax.tree.map(lambda x: x[0], state))
+        one = ((state, key), one[1])
+    for held in history[:2]:
+        assert all(
+            np.array_equal(x, y)
+            for x, y in zip(_leaves(held.policy_params), _leaves(ts.policy_params), strict=True)
+        )
+        assert float(held.log_alpha) == float(ts.log_alpha)
+        assert not all(
+            np.array_equal(x, y)
+            for x, y in zip(_leaves(held.q_params), _leaves(ts.q_params), strict=True)
+        )
+    moved = history[2]
+    assert not all(
+        np.array_equal(x, y)
+        for x, y in zip(_leaves(moved.policy_params), _leaves(ts.policy_params), strict=True)
+    )
+    assert float(moved.log_alpha) != float(ts.log_alpha)

@@ -293,6 +293,7 @@ RANGES: dict[str, Range] = {
     "alpha_init": Range(0.0, 1e6, lo_open=True),
     "hidden_layer_size": Range(1, 4096, integer=True),
     "steps_per_call": Range(1, 100_000, integer=True),
+    "actor_delay_updates": Range(0, 10**9, integer=True),
     # a policy's network (policy.json), checked before anything is allocated
     "observation_size": Range(1, 4096, integer=True),
     "action_size": Range(1, 64, integer=True),

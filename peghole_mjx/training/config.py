@@ -31,6 +31,10 @@ Keys, and the choices made where Brax's defaults differ from the thesis (stack_n
   ``normalize_observations``: running mean/std normaliser, on.
 * ``critic``: the critics' network, ``mlp`` (Brax's, the default), ``layernorm`` or ``simba``
   (:mod:`peghole_mjx.training.critics`; the actor and the losses are the same for all).
+* ``actor_delay_updates``: gradient updates in which only the critics learn (the actor and
+  the temperature held), 0: a critic burn-in, as residual RL uses (Silver et al. 2018) so
+  that a residual policy (env ``action.residual``), which starts as the scripted pull, is
+  not moved by an untrained critic.
 * ``steps_per_call``: batched env steps per jitted call (progress-bar granularity), 25;
   ``seed``: 0; ``env_overrides``: flat env-config overrides (e.g. ``episode_length``).
 * The compliance strategy is an env config entry (``compliance_strategy``,
@@ -95,6 +99,7 @@ class TrainConfig:
     hidden_layer_sizes: list[int] = field(default_factory=lambda: [256, 256])
     normalize_observations: bool = True
     critic: str = "mlp"
+    actor_delay_updates: int = 0
     steps_per_call: int = 25
     seed: int = 0
     env_overrides: dict[str, Any] = field(default_factory=dict)

@@ -44,6 +44,7 @@ into a select that would run both branches at every step (tested).
 
 from __future__ import annotations
 
+import functools
 import itertools
 from typing import Any
 
@@ -217,6 +218,19 @@ class SACTrainer:
         return fn(*args)
 
     def _init(self, learner_key, local_key) -> Carry:
+        ts = self.learner_state(learner_key)
+        k_env, k_buf, k_run = jax.random.split(local_key, 3)
+        env_state = batch_reset(self.env, jax.random.split(k_env, self.envs_per_dev))
+        n = self.envs_per_dev
+        ep_acc = zero_returns(n)
+        carry = Carry(ts, env_state, ep_acc, self.buffer.init(k_buf), k_run)
+        # no weak types: a carry reloaded from disk then has exactly the same avals (no
+        # recompile on resume)
+        return jax.tree.map(_strong, carry)
+
+    def learner_state(self, learner_key) -> TrainingState:
+        """A fresh learner: networks drawn from ``learner_key`` (a residual policy's mean
+        zeroed: :func:`zero_action_mean`), optimisers and normaliser at their start."""
         cfg = self.cfg
         kp, kq = jax.random.split(learner_key)
         policy_params = self.nets.policy_network.init(kp)
@@ -238,14 +252,7 @@ class SACTrainer:
             ),
             gradient_steps=jnp.zeros((), jnp.int32),
         )
-        k_env, k_buf, k_run = jax.random.split(local_key, 3)
-        env_state = batch_reset(self.env, jax.random.split(k_env, self.envs_per_dev))
-        n = self.envs_per_dev
-        ep_acc = zero_returns(n)
-        carry = Carry(ts, env_state, ep_acc, self.buffer.init(k_buf), k_run)
-        # no weak types: a carry reloaded from disk then has exactly the same avals (no
-        # recompile on resume)
-        return jax.tree.map(_strong, carry)
+        return ts
 
     # ------------------------------------------------------------------ acting
     def _step_and_reset(self, states, actions, key):
@@ -336,6 +343,12 @@ class SACTrainer:
             k_actor,
             optimizer_state=ts.policy_opt,
         )
+        if self.cfg.actor_delay_updates:  # critic burn-in: actor and temperature held
+            learn = ts.gradient_steps >= self.cfg.actor_delay_updates
+            keep = functools.partial(jax.tree.map, lambda new, old: jnp.where(learn, new, old))
+            policy_params = keep(policy_params, ts.policy_params)
+            policy_opt = keep(policy_opt, ts.policy_opt)
+            log_alpha, alpha_opt = keep((log_alpha, alpha_opt), (ts.log_alpha, ts.alpha_opt))
         tau = self.cfg.tau
         target = jax.tree.map(lambda t, q: t * (1 - tau) + q * tau, ts.target_q_params, q_params)
         ts = ts.replace(
