@@ -300,7 +300,10 @@ class DeployedPolicy:
         self._residual = (
             None
             if residual is None
-            else (np.asarray(residual["base"], np.float64), float(residual["scale"]))
+            else (
+                np.asarray(residual["offset"], np.float64),
+                np.asarray(residual["gain"], np.float64),
+            )
         )
         self._ff_cap = np.asarray(dec["force_ff_cap_N"], np.float64)
         self._gains = {
@@ -357,11 +360,11 @@ class DeployedPolicy:
         if np.any(self._tip_step < 0) or np.any(self._ff_cap < 0) or self._ff_step < 0:
             bad("a step or cap is negative")
         if self._residual is not None:
-            base, scale = self._residual
-            if base.shape != (self.action_size,) or not np.all(np.abs(base) <= 1.0):
-                bad(f"decode.residual.base must be {self.action_size} numbers in [-1, 1]")
-            if not (np.isfinite(scale) and scale > 0):
-                bad(f"decode.residual.scale must be a positive number, got {scale!r}")
+            offset, gain = self._residual
+            if offset.shape != (self.action_size,) or not np.all(np.abs(offset) <= 1.0):
+                bad(f"decode.residual.offset must be {self.action_size} numbers in [-1, 1]")
+            if gain.shape != (self.action_size,) or not np.all((gain >= 0) & (gain <= 2)):
+                bad(f"decode.residual.gain must be {self.action_size} numbers in [0, 2]")
         if not (self._peg_length > 0 and self._peg_mass > 0):
             bad("the peg's length and mass must be positive")
         ranges = self._ranges()
@@ -519,8 +522,8 @@ class DeployedPolicy:
         a = np.clip(np.where(np.isnan(a), 0.0, a), -1.0, 1.0)
         applied = a
         if self._residual is not None:  # the env's residual_action
-            base, scale = self._residual
-            applied = np.clip(base + scale * a, -1.0, 1.0)
+            offset, gain = self._residual
+            applied = np.clip(offset + gain * a, -1.0, 1.0)
         # the new state is computed and checked first: a refused command changes nothing
         prev = self._cmd_tip
         tip = prev + applied[:3] * self._tip_step

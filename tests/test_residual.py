@@ -1,12 +1,14 @@
-"""Residual actions (``action.residual``): the step applies the scripted pull plus
-``action.residual_scale`` x the policy's action. A zero residual is the scripted baseline,
-bit for bit, in the decoding, in a MuJoCo C rollout and in an exported policy's deployment."""
+"""Residual actions (``action.residual``): the pull is the scripted 20 mm/s plus
+``action.residual_scale`` x its action, the compliance gains are the action's own, the lateral
+offset and feed-forward increments are held at 0. The decoding, a MuJoCo C rollout and an
+exported policy's deployment all equal the plain env driven by the mapped action."""
 
 from __future__ import annotations
 
 import json
 import shutil
 
+import jax
 import jax.numpy as jnp
 import numpy as np
 import pytest
@@ -21,6 +23,19 @@ from peghole_mjx.policies.export import _residual_spec, export_policy
 #: the learning benchmark's RectExtract settings (its ``cpu`` profile's env overrides)
 CS = {"compliance_strategy": True, "action.max_speed_m_s": 0.025, "engine": "mujoco"}
 RESIDUAL = {**CS, "action.residual": True}
+A = np.array([1.0, -0.5, 0.8, 1.0, 0.3, -1.0, -0.6, 0.4], np.float32)
+
+
+def _load(overrides):
+    return envs.load("RectExtract", config_overrides=overrides)
+
+
+def _mapped(a, scale=0.25):
+    """The plain env's action that a residual env applies for ``a``."""
+    out = np.zeros_like(a)
+    out[2] = min(0.8 + scale * a[2], 1.0)  # the scripted 20 mm/s is 0.8 of 25 mm/s
+    out[6:] = a[6:]
+    return out
 
 
 def _info():
@@ -34,89 +49,79 @@ def _info():
     }
 
 
-def test_a_zero_residual_decodes_to_the_scripted_pull():
-    plain, res = (
-        envs.load("RectExtract", config_overrides=CS),
-        envs.load("RectExtract", config_overrides=RESIDUAL),
-    )
+@pytest.mark.parametrize("a", [np.zeros(8, np.float32), A, -A])
+def test_a_residual_env_decodes_as_the_plain_env_of_the_mapped_action(a):
+    plain, res = _load(CS), _load(RESIDUAL)
     ca = res.compliance_actions
-    want = extraction.decode_action(
-        jnp.asarray(extraction.scripted_action(plain.config, ca)), _info(), plain.config, ca
-    )
-    got = extraction.decode_action(jnp.zeros(res.action_size), _info(), res.config, ca)
+    want = extraction.decode_action(jnp.asarray(_mapped(a)), _info(), plain.config, ca)
+    got = extraction.decode_action(jnp.asarray(a), _info(), res.config, ca)
     for w, g in zip(want, got, strict=True):
         np.testing.assert_array_equal(np.asarray(g), np.asarray(w))
-    # a residual moves the command by residual_scale of the plain action's step
-    a = jnp.array([1.0, -1.0, 1.0, 0.5, 0.0, -0.5, 0.0, 0.0])
-    tip = extraction.decode_action(a, _info(), res.config, ca)[0]
-    step_xy = res.config.action.max_step_offset_mm * 1e-3 * 0.25
-    np.testing.assert_allclose(np.asarray(tip - want[0])[:2], [step_xy, -step_xy], rtol=1e-5)
-    # the pull's residual is clipped at the plain action's bound: 0.8 + 0.25 -> 1, not more
-    dz_full = res.config.action.max_speed_m_s * res.config.ctrl_dt
-    assert float(tip[2] - _info()["cmd_tip"][2]) == pytest.approx(dz_full, rel=1e-5)
+    # the integrators are held: the commanded tip moves along the hole axis only, the
+    # feed-forward stays where it was
+    np.testing.assert_array_equal(np.asarray(got[0][:2]), np.asarray(_info()["cmd_tip"][:2]))
+    np.testing.assert_array_equal(np.asarray(got[1]), np.asarray(_info()["wrench_ff"]))
 
 
-def test_the_scripted_policy_of_a_residual_env_is_its_zero_residual():
-    res = envs.load("RectExtract", config_overrides=RESIDUAL)
-    np.testing.assert_array_equal(np.asarray(scripted_policy(res)(None, None)), 0.0)
+def test_the_scripted_policy_of_a_residual_env_applies_the_scripted_pull():
+    plain, res = _load(CS), _load(RESIDUAL)
+    a = np.asarray(scripted_policy(res)(None, None))
+    np.testing.assert_array_equal(a[:6], 0.0)  # the pull's residual is 0 at 20 mm/s
+    np.testing.assert_array_equal(a[6:], np.asarray(scripted_policy(plain)(None, None))[6:])
     slower = np.asarray(scripted_policy(res, 0.018)(None, None))
     np.testing.assert_allclose(slower[2], -0.32, rtol=1e-5)  # (0.72 - 0.8) / 0.25
     with pytest.raises(UserInputError, match="0.005 m/s is beyond this residual env's reach"):
         scripted_policy(res, 0.005)
 
 
-def test_a_residual_scale_of_zero_is_refused_naming_the_entry():
+def test_a_residual_scale_out_of_range_is_refused_naming_the_entry():
     with pytest.raises(UserInputError, match="action.residual_scale must be > 0"):
-        envs.load("RectExtract", config_overrides={**RESIDUAL, "action.residual_scale": 0.0})
+        _load({**RESIDUAL, "action.residual_scale": 0.0})
     with pytest.raises(UserInputError, match="action.residual must be true or false"):
-        envs.load("RectExtract", config_overrides={**RESIDUAL, "action.residual": "yes"})
+        _load({**RESIDUAL, "action.residual": "yes"})
 
 
-def test_a_zero_residual_rolls_out_the_scripted_baseline_on_mujoco_c():
-    """4 episodes (same keys): every per-episode record equal, bit for bit."""
-    plain, res = (
-        envs.load("RectExtract", config_overrides=CS),
-        envs.load("RectExtract", config_overrides=RESIDUAL),
-    )
-    a = rollout(plain, scripted_policy(plain), 4, seed=3, progress=False, chunk=50)
-    b = rollout(res, scripted_policy(res), 4, seed=3, progress=False, chunk=50)
-    assert a.per_episode.keys() == b.per_episode.keys()
-    assert a.per_episode["success"].sum() == 4  # the scripted pull extracts these
-    for key, value in a.per_episode.items():
-        np.testing.assert_array_equal(b.per_episode[key], value, err_msg=key)
+def test_a_residual_rollout_on_mujoco_c_equals_the_plain_env_of_the_mapped_action():
+    """4 episodes (same keys) of the scripted pull and of a constant residual: every
+    per-episode record equal, bit for bit."""
+    plain, res = _load(CS), _load(RESIDUAL)
+    for plain_policy, res_policy in (
+        (scripted_policy(plain), scripted_policy(res)),
+        (lambda o, r: jnp.asarray(_mapped(A)), lambda o, r: jnp.asarray(A)),
+    ):
+        a = rollout(plain, plain_policy, 4, seed=3, progress=False, chunk=50)
+        b = rollout(res, res_policy, 4, seed=3, progress=False, chunk=50)
+        assert a.per_episode["success"].sum() == 4  # both pulls extract these episodes
+        for key, value in a.per_episode.items():
+            np.testing.assert_array_equal(b.per_episode[key], value, err_msg=key)
 
 
 def test_a_deployed_residual_policy_decodes_as_the_env(tmp_path):
-    """The export's ``decode.residual`` makes the deployment apply base + scale x action."""
+    """The export's ``decode.residual`` makes the deployment apply the env's affine map."""
     plain = DeployedPolicy(export_policy("rect", tmp_path / "plain")["out"])
-    spec_env = envs.load(
-        "RectExtract", config_overrides={**RESIDUAL, "action.residual_scale": 0.25}
-    )
     folder = tmp_path / "residual"
     shutil.copytree(plain.folder, folder)
     spec = json.loads((folder / "action.json").read_text())
     assert spec["decode"]["residual"] is None  # the published policy is not residual
-    spec["decode"]["residual"] = _residual_spec(spec_env)
+    spec["decode"]["residual"] = _residual_spec(_load(RESIDUAL))
+    assert spec["decode"]["residual"]["gain"] == [0, 0, 0.25, 0, 0, 0, 1, 1]
     (folder / "action.json").write_text(json.dumps(spec))
     res = DeployedPolicy(folder)
-    a = np.array([1.0, -0.5, 0.8, 1.0, 0.0, -1.0, -1.0, 1.0])
-    applied = np.clip(np.asarray(spec["decode"]["residual"]["base"]) + 0.25 * a, -1, 1)
     for p in (plain, res):
         p.reset(commanded_tip_m=(0.001, -0.002, -0.03))
-    got, want = res.decode(a), plain.decode(applied)
+    got, want = res.decode(A), plain.decode(_mapped(A))
     np.testing.assert_array_equal(got.tip_target_m, want.tip_target_m)
     np.testing.assert_array_equal(got.force_ff_hole_N, want.force_ff_hole_N)
     assert (got.k_xy_N_m, got.k_rot_Nm_rad) == (want.k_xy_N_m, want.k_rot_Nm_rad)
-    spec["decode"]["residual"]["base"] = [2.0] * len(a)
+    spec["decode"]["residual"]["offset"] = [2.0] * len(A)
     (folder / "action.json").write_text(json.dumps(spec))
-    with pytest.raises(CorruptFileError, match=r"decode.residual.base must be 8 numbers in \[-1"):
+    with pytest.raises(CorruptFileError, match=r"residual.offset must be 8 numbers in \[-1"):
         DeployedPolicy(folder)
 
 
-def test_a_residual_policy_starts_as_the_scripted_pull():
-    """zero_action_mean: the deterministic action is 0 on any observation, the exploration
-    scale as drawn."""
-    import jax
+def test_a_residual_policy_starts_at_a_zero_action():
+    """zero_action_mean: the deterministic action is 0 on any observation (the scripted
+    pull's speed, mid-range gains), the exploration scale as drawn."""
     from brax.training.acme import running_statistics, specs
     from brax.training.agents.sac import networks as sac_networks
 

@@ -83,9 +83,9 @@ def base_config(preset: str) -> config_dict.ConfigDict:
             # E11 by default; DualExtract's training profiles lower it: docs/guide/training.md,
             # "Lateral feed-forward bound")
             max_ff_xy_N=LIMITS.max_force_N[0],
-            # residual actions: the step applies the scripted pull (20 mm/s, no lateral
-            # offset or feed-forward, the fixed gains) plus residual_scale x the action, so an
-            # untrained policy already extracts (envs/extraction.py residual_action)
+            # residual actions: the pull is the scripted 20 mm/s plus residual_scale x its
+            # action, the gains are the action's, the lateral offset and feed-forward are held
+            # at 0 (envs/extraction.py residual_affine; docs/research/residual.md)
             residual=False,
             residual_scale=0.25,
         ),

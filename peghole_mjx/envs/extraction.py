@@ -138,15 +138,40 @@ def scripted_action(
     return np.clip(a, -1.0, 1.0)
 
 
-def residual_action(action, c: config_dict.ConfigDict, compliance_actions) -> jax.Array:
-    """The action the step applies: ``action`` itself, or with ``action.residual`` the
-    scripted pull plus ``action.residual_scale`` times it (a residual policy: Johannink et
-    al. 2019, "Residual Reinforcement Learning for Robot Control"), clipped to [-1, 1]."""
-    a = clean_action(action)
+#: the action entries a residual policy leaves at the scripted pull's zero: the increments of
+#: the lateral offset (0-1) and of the feed-forward force (3-5), integrators that sum any bias
+#: of a policy's mean into a jam (docs/research/residual.md)
+RESIDUAL_HELD = (0, 1, 3, 4, 5)
+
+
+def residual_affine(
+    c: config_dict.ConfigDict, compliance_actions
+) -> tuple[np.ndarray, np.ndarray] | None:
+    """``(offset, gain)`` of a residual env (``action.residual``; None otherwise): the step
+    applies ``clip(offset + gain * action, -1, 1)``. The pull (entry 2) is the scripted 20 mm/s
+    plus ``action.residual_scale`` times its action; the learned gains (6 on) are the action
+    itself, as without a residual; the integrators (:data:`RESIDUAL_HELD`) are held at 0."""
     if not c.action.residual:
+        return None
+    offset = np.zeros(6 + len(compliance_actions), np.float32)
+    gain = np.ones_like(offset)
+    offset[2] = scripted_action(c, compliance_actions)[2]
+    gain[2] = c.action.residual_scale
+    gain[list(RESIDUAL_HELD)] = 0.0
+    return offset, gain
+
+
+def residual_action(action, c: config_dict.ConfigDict, compliance_actions) -> jax.Array:
+    """The action the step applies: ``action`` itself (NaN -> 0, clipped), or on a residual env
+    :func:`residual_affine`'s ``clip(offset + gain * action, -1, 1)``: a residual policy on the
+    scripted pull (Johannink et al. 2019, "Residual Reinforcement Learning for Robot
+    Control") that learns the pulling speed and the compliance gains."""
+    a = clean_action(action)
+    affine = residual_affine(c, compliance_actions)
+    if affine is None:
         return a
-    base = jnp.asarray(scripted_action(c, compliance_actions))
-    return jnp.clip(base + c.action.residual_scale * a, -1.0, 1.0)
+    offset, gain = (jnp.asarray(v) for v in affine)
+    return jnp.clip(offset + gain * a, -1.0, 1.0)
 
 
 def decode_action(action, info, c: config_dict.ConfigDict, compliance_actions):

@@ -31,7 +31,12 @@ from peghole_mjx.core import memory
 from peghole_mjx.core import progress as prog
 from peghole_mjx.core.errors import UserInputError
 from peghole_mjx.envs.config import leaves
-from peghole_mjx.envs.extraction import SCRIPTED_SPEED_M_S, PegHoleEnv, scripted_action
+from peghole_mjx.envs.extraction import (
+    SCRIPTED_SPEED_M_S,
+    PegHoleEnv,
+    residual_affine,
+    scripted_action,
+)
 from peghole_mjx.envs.metrics import (
     STATS,
     accumulate_return,
@@ -49,16 +54,17 @@ Policy = Callable[[jax.Array, jax.Array], jax.Array]
 def scripted_policy(env: PegHoleEnv, speed_m_s: float = SCRIPTED_SPEED_M_S) -> Policy:
     """Straight pull at ``speed_m_s`` with the env's fixed stiffness and compliance centre
     (:func:`~peghole_mjx.envs.extraction.scripted_action`); on a residual env
-    (``action.residual``) the residual that makes the step apply it (zero at the default
-    speed).
+    (``action.residual``) the action that makes the step apply it (the pull's residual zero at
+    the default speed, the gains' own encoding).
 
     Cached per env, so rollouts of the baseline reuse their compiled runner.
     """
     c = env.config
     a = scripted_action(c, env.compliance_actions, speed_m_s)
-    if c.action.residual:
-        base = scripted_action(c, env.compliance_actions)
-        a = (a - base) / c.action.residual_scale
+    affine = residual_affine(c, env.compliance_actions)
+    if affine is not None:  # held entries: the scripted pull's 0 is their only value
+        offset, gain = affine
+        a = np.divide(a - offset, gain, out=np.zeros_like(a), where=gain != 0)
         if np.any(np.abs(a) > 1.0 + 1e-6):
             raise UserInputError(
                 f"a scripted pull at {speed_m_s:g} m/s is beyond this residual env's reach "

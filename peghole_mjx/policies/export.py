@@ -65,7 +65,7 @@ from peghole_mjx.deploy import (
     read_spec,
 )
 from peghole_mjx.envs import iiwa_constants as names
-from peghole_mjx.envs.extraction import scripted_action
+from peghole_mjx.envs.extraction import residual_affine
 from peghole_mjx.envs.metrics import EPISODE_METRICS, EPISODE_RECORD, summarize
 from peghole_mjx.envs.rollout import episode_keys, make_runner, rollout
 from peghole_mjx.files import fileio
@@ -257,12 +257,13 @@ def observation_entries(env) -> list[dict[str, Any]]:
 
 
 def _residual_spec(env) -> dict[str, Any] | None:
-    """``decode.residual``: the scripted action and the scale of a residual policy, or None."""
-    c = env.config
-    if not c.action.residual:
+    """``decode.residual`` of a residual policy (env ``action.residual``): the affine map
+    ``clip(offset + gain * a, -1, 1)`` applied before the entries' mappings; else None."""
+    affine = residual_affine(env.config, env.compliance_actions)
+    if affine is None:
         return None
-    base = scripted_action(c, env.compliance_actions)
-    return {"base": [float(v) for v in base], "scale": float(c.action.residual_scale)}
+    offset, gain = affine
+    return {"offset": [float(v) for v in offset], "gain": [float(v) for v in gain]}
 
 
 def action_spec(bundle: PolicyBundle, env, onnx_sha256: str) -> dict[str, Any]:
@@ -354,14 +355,14 @@ def action_spec(bundle: PolicyBundle, env, onnx_sha256: str) -> dict[str, Any]:
         "action": {
             "size": int(net["action_size"]),
             "range": [-1.0, 1.0],
-            "clean": "NaN -> 0, then clipped to [-1, 1]; with decode.residual: clip(base + "
-            "scale * a, -1, 1) before the entries' mappings",
+            "clean": "NaN -> 0, then clipped to [-1, 1]; with decode.residual: clip(offset "
+            "+ gain * a, -1, 1) before the entries' mappings",
             "entries": entries,
         },
         "decode": {
             "tip_step_m": [step_xy, step_xy, step_z],
             "force_ff_step_N": float(c.action.max_force_step_N),
-            # a residual policy (env action.residual): the scripted pull its action offsets
+            # a residual policy (env action.residual): the affine map before the decoding
             "residual": _residual_spec(env),
             "force_ff_cap_N": [min(fx, ff_xy), min(fy, ff_xy), fz],
             "learned_gains": {

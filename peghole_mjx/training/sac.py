@@ -73,10 +73,9 @@ def zero_action_mean(policy_params, action_size: int):
     """Policy parameters whose action mean is 0 for every observation: the last layer's
     weights and bias of the mean (``loc``, the first ``action_size`` outputs of Brax's
     ``NormalTanhDistribution``) set to zero, its scale left as drawn. A residual policy
-    (env ``action.residual``) then starts as the scripted pull, with exploration noise about
-    it, as residual RL does (Silver et al. 2018, "Residual Policy Learning"): drawn weights
-    give each action a constant bias of order 0.1-1 that the feed-forward and offset
-    integrators sum into a jam."""
+    (env ``action.residual``) then starts at the zero action (the scripted pull's speed,
+    mid-range gains), with exploration noise about it, as residual RL does (Silver et al.
+    2018, "Residual Policy Learning"); drawn weights would bias each action by 0.1-1."""
     layers = dict(policy_params["params"])
     last = max(layers, key=lambda name: int(name.rsplit("_", 1)[1]))
     w, b = layers[last]["kernel"], layers[last]["bias"]
