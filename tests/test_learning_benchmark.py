@@ -83,6 +83,34 @@ def test_task_summary_counts_collapse_success_share_and_times():
     assert lo < t["mean_fz_minus_baseline_N"] < hi
 
 
+def test_task_summary_reports_the_untrained_evaluation_beside_the_final_force():
+    per_seed = [
+        _seed(200, 1.0, 1.0, 0),
+        _seed(201, 1.0, 1.0, 0, fz=(3.0, 8.0)),
+        _seed(202, 1, 1, 0),
+    ]
+    per_seed[0] |= {"untrained_success": 1.0, "untrained_mean_fz_N": 4.0}
+    per_seed[1] |= {"untrained_success": 0.5, "untrained_mean_fz_N": 5.0}
+    per_seed[2] |= {"untrained_success": None, "untrained_mean_fz_N": None}  # none recorded
+    t = lb.task_summary("RectExtract", per_seed)
+    assert t["untrained_success_mean"] == pytest.approx(0.75)
+    assert t["untrained_mean_fz_N"] == pytest.approx(4.5)
+    assert t["final_mean_fz_N"] == pytest.approx((5.0 + 3.0 + 5.0) / 3)
+
+
+def test_seed_record_reads_the_untrained_evaluation_at_step_0(tmp_path):
+    run = tmp_path / "run"
+    run.mkdir()
+    (run / "run.json").write_text(json.dumps({"config": {"seed": 7}, "commit": "abc"}))
+    (run / "metrics.csv").write_text(
+        "step,eval/success_rate,eval/mean_fz_N,train_wall_s\n0,1.0,4.25,0.0\n1600,0.5,3.0,9.0\n"
+    )
+    side = {"success_rate": 1.0, "mean_fz_N": 3.5, "peak_fz_N": 9.0}
+    rec = lb.seed_record(run, {"policy": side, "baseline": side, "episodes": 256})
+    assert (rec["untrained_success"], rec["untrained_mean_fz_N"]) == (1.0, 4.25)
+    assert rec["curve"] == [(0, 1.0), (1600, 0.5)]
+
+
 def test_task_summary_without_a_baseline_has_no_force_difference():
     per_seed = [_seed(100, 1.0, 1.0, 3200), _seed(101, 0.9, 1.0, None)]
     for s in per_seed:

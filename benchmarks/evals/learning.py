@@ -21,6 +21,8 @@ Per task, in ``learning.json`` (and one row per task in ``learning.csv``):
   evaluation at >= 95 %: median and IQR over the seeds that reached it, and how many did;
 * mean and peak F_z of the final policy minus the baseline's on the same episodes, per seed,
   with a 95 % Student-t interval over seeds;
+* the untrained policy's evaluation (env step 0, the training evaluation's episodes): its
+  success and mean F_z per seed and their means, beside the final policy's mean F_z;
 * the figure ``curves_<task>.png``: evaluation success against env steps, the seeds' mean and
   95 % band.
 
@@ -103,6 +105,8 @@ CSV_FIELDS = (
     "mean_fz_ci95_lo",
     "mean_fz_ci95_hi",
     "peak_fz_minus_baseline_N",
+    "untrained_mean_fz_N",
+    "final_mean_fz_N",
     "engine",
     "reward_kind",
     "device",
@@ -187,7 +191,18 @@ def task_summary(task: str, per_seed: list[dict]) -> dict[str, Any]:
         "mean_fz_minus_baseline_ci95": t_ci(d_mean),
         "peak_fz_minus_baseline_N": float(np.mean(d_peak)) if d_peak else None,
         "peak_fz_minus_baseline_ci95": t_ci(d_peak),
+        # the untrained policy's evaluation (env step 0; its own episodes, not the final
+        # ones): what a residual policy's zero action already does before any learning
+        "untrained_success_mean": _mean_of(per_seed, "untrained_success"),
+        "untrained_mean_fz_N": _mean_of(per_seed, "untrained_mean_fz_N"),
+        "final_mean_fz_N": _mean_of(per_seed, "policy_mean_fz_N"),
     }
+
+
+def _mean_of(per_seed: list[dict], key: str) -> float | None:
+    """The mean of ``key`` over the seeds that have it, None if none has."""
+    values = [s[key] for s in per_seed if s.get(key) is not None]
+    return float(np.mean(values)) if values else None
 
 
 # ---------------------------------------------------------------------- runs
@@ -204,6 +219,8 @@ def seed_record(run_dir: Path, final: dict[str, Any]) -> dict[str, Any]:
         if _f(r.get("eval/success_rate")) is not None
     ]
     hit = first_at(rows)
+    # the untrained policy's evaluation (env step 0), where the run made one
+    start = next((r for r in rows if r.get("step") == "0"), {})
     run_json = json.loads((run_dir / "run.json").read_text())
     cfg = run_json["config"]
     pol, base = final["policy"], final["baseline"]
@@ -223,6 +240,8 @@ def seed_record(run_dir: Path, final: dict[str, Any]) -> dict[str, Any]:
         "baseline_mean_fz_N": _f(base["mean_fz_N"]),
         "baseline_peak_fz_N": _f(base["peak_fz_N"]),
         "final_episodes": int(final["episodes"]),
+        "untrained_success": _f(start.get("eval/success_rate")),
+        "untrained_mean_fz_N": _f(start.get("eval/mean_fz_N")),
     }
 
 
@@ -432,6 +451,8 @@ def _run(args, command: list[str]) -> int:
                 "mean_fz_ci95_lo": mci[0],
                 "mean_fz_ci95_hi": mci[1],
                 "peak_fz_minus_baseline_N": t["peak_fz_minus_baseline_N"],
+                "untrained_mean_fz_N": t["untrained_mean_fz_N"],
+                "final_mean_fz_N": t["final_mean_fz_N"],
                 "engine": t["engine"],
                 "reward_kind": t["reward_kind"],
                 "device": prov["device"],
