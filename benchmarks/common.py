@@ -14,7 +14,6 @@ The MuJoCo C and PyBullet baselines run the NumPy twin of the impedance law,
 from __future__ import annotations
 
 import argparse
-import ast
 import csv
 import importlib.metadata
 import io
@@ -30,6 +29,7 @@ from pathlib import Path
 from tqdm import tqdm
 
 from peghole_mjx.core.errors import UserInputError
+from peghole_mjx.core.validation import key_value
 from peghole_mjx.files import fileio
 from peghole_mjx.files.provenance import cpu_device as cpu_device  # re-exported
 from peghole_mjx.files.provenance import utc_now as utc_now  # re-exported
@@ -116,14 +116,16 @@ def newcombe(k1: int, n1: int, k2: int, n2: int, z: float = 1.96) -> list[float]
 
 
 def parse_overrides(items: list[str] | None) -> dict:
-    """``KEY=VALUE`` strings -> flat config overrides (values as Python literals)."""
+    """``KEY=VALUE`` strings -> flat config overrides, each value read as ``peghole --set``
+    reads it (:func:`peghole_mjx.core.validation.key_value`: JSON, else a Python literal,
+    else text), so a benchmark's ``--set`` means what the CLI's does."""
     out = {}
     for item in items or []:
-        key, _, value = item.partition("=")
         try:
-            out[key] = ast.literal_eval(value)
-        except (ValueError, SyntaxError):
-            out[key] = value
+            key, value = key_value(item)
+        except argparse.ArgumentTypeError as exc:
+            raise UserInputError(f"--set {item!r}: {exc}") from None
+        out[key] = value
     return out
 
 

@@ -687,3 +687,32 @@ def test_committed_contact_caps_csv_is_its_json():
         (r["scene"], r["policy"], r["max_active"]) for r in doc["rows"]
     ]
     assert all(r["device"] == doc["device"] and r["date"] == doc["date"] for r in rows)
+
+
+def test_a_benchmark_set_reads_its_value_as_the_cli_does():
+    """One parser (core.validation.key_value) for ``peghole --set`` and every benchmark's:
+    JSON first (``true``), then a Python literal (``False``, a tuple), else the text."""
+    from benchmarks.common import parse_overrides
+    from peghole_mjx.core.errors import UserInputError
+    from peghole_mjx.core.validation import key_value
+
+    items = [
+        "env.action.residual=true",
+        "a=False",
+        "b=(0.8, 1.2)",
+        "c=[1, 2]",
+        "d=mujoco",
+        "e=1e-4",
+    ]
+    parsed = parse_overrides(items)
+    assert parsed == dict(key_value(i) for i in items)
+    assert parsed == {
+        "env.action.residual": True,
+        "a": False,
+        "b": (0.8, 1.2),
+        "c": (1, 2),
+        "d": "mujoco",
+        "e": 1e-4,
+    }
+    with pytest.raises(UserInputError, match="expected KEY=VALUE"):
+        parse_overrides(["no_equals_sign"])

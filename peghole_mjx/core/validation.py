@@ -11,6 +11,7 @@ output and written reports are valid JSON.
 from __future__ import annotations
 
 import argparse
+import ast
 import json
 import math
 import numbers
@@ -346,14 +347,18 @@ def arg(kind: str):
 
 def key_value(text: str) -> tuple[str, object]:
     """An argparse ``type``: ``KEY=VALUE``, VALUE as JSON when it parses (``0.5``, ``true``,
-    ``[0.8, 1.2]``, a list becoming a tuple), else the text itself."""
+    ``[0.8, 1.2]``, a list becoming a tuple), else as a Python literal (``False``, ``None``,
+    ``(0.8, 1.2)``), else the text itself. The one parser of every ``--set``."""
     if "=" not in text:
         raise argparse.ArgumentTypeError(f"expected KEY=VALUE, got {text!r}")
     key, value = text.split("=", 1)
     try:
         parsed = json.loads(value)
     except json.JSONDecodeError:
-        parsed = value
+        try:
+            parsed = ast.literal_eval(value)
+        except (ValueError, SyntaxError, MemoryError, RecursionError):
+            parsed = value
     if isinstance(parsed, list):
         parsed = tuple(parsed)
     return key.strip(), parsed
