@@ -28,7 +28,7 @@ from benchmarks.baselines.pybullet_peghole import PegHoleSim
 from benchmarks.common import SCENE_OVERRIDES, SCENES, cpu_device, max_rss_mb
 from peghole_mjx import envs
 from peghole_mjx.envs.iiwa_constants import HOLE_BODY
-from peghole_mjx.envs.rollout import SCRIPTED_SPEED_M_S, scripted_policy
+from peghole_mjx.envs.rollout import scripted_policy
 from peghole_mjx.files.provenance import device
 from peghole_mjx.sim.engine_mujoco import available_threads
 from peghole_mjx.sim.engines import batch_reset, select_worlds
@@ -160,13 +160,6 @@ def run_env_mujoco(
 
 
 # ----------------------------------------------------------------------------- MuJoCo C
-def scripted_action(env) -> np.ndarray:
-    """The scripted pull as an env action (SCRIPTED_SPEED_M_S straight out)."""
-    a = np.zeros(env.action_size)
-    a[2] = SCRIPTED_SPEED_M_S / env.config.action.max_speed_m_s
-    return a
-
-
 def record_starts(scene: str, starts: int, nstep: int, seed: int = 1) -> dict:
     """Closed-loop torques of ``starts`` randomised episode starts of a throughput scene, on the
     env's own ``mujoco`` engine under the scripted pull, ``nstep`` physics steps each.
