@@ -46,9 +46,9 @@ import jax.numpy as jnp
 import numpy as np
 
 from benchmarks.common import PERF_RESULTS, out_file, versions_field, write_rows
-from benchmarks.perf.engines import scripted_action
 from peghole_mjx import envs
 from peghole_mjx.envs.contacts import ContactReplay, restart_done
+from peghole_mjx.envs.extraction import scripted_action
 from peghole_mjx.files.provenance import provenance
 from peghole_mjx.geometry.mjcf import CONTACT_CAPS
 
@@ -67,7 +67,8 @@ ENGINES = {"mujoco": {"engine": "mujoco"}, "mjx-jax": {"engine": "mjx", "impl": 
 
 def _policy_action(kind: str, env, rng: np.random.Generator, worlds: int) -> np.ndarray:
     if kind == "scripted":
-        return np.broadcast_to(scripted_action(env), (worlds, env.action_size)).copy()
+        a = scripted_action(env.config, env.compliance_actions)
+        return np.broadcast_to(a, (worlds, env.action_size)).copy()
     return rng.uniform(-1.0, 1.0, (worlds, env.action_size))
 
 
