@@ -142,6 +142,8 @@ INACTIVE = frozenset(
         # the stuck joint's figures act only with stuck.enabled (REQUIRED off)
         "stuck.breakaway_N",
         "stuck.timeconst_s",
+        # the residual's scale acts only with action.residual (REQUIRED off)
+        "action.residual_scale",
         # the outcome reward's settings act only with reward_config.kind outcome (REQUIRED:
         # the seed stack pays the thesis's eq 4.4)
         *(f"reward_config.{k}" for k in OUTCOME_WEIGHTS),
@@ -151,6 +153,7 @@ INACTIVE = frozenset(
 #: fixed stiffness (compliance strategy off), the preset's own geometry
 REQUIRED = {
     "reward_config.kind": "thesis",
+    "action.residual": False,
     "compliance_strategy": False,
     "learn_compliance_centre": False,
     "obs.prev_action": False,
