@@ -73,7 +73,7 @@ from peghole_mjx.geometry.specs import MM
 from peghole_mjx.sim.engines import world_where
 
 #: the scripted baseline's constant pulling speed (thesis: 150 mm in about 7.6 s); with
-#: ``action.residual`` the policy's action is an offset from this pull
+#: ``action.residual`` the policy's pull is a residual on it
 SCRIPTED_SPEED_M_S = 0.02
 
 
@@ -179,8 +179,8 @@ def decode_action(action, info, c: config_dict.ConfigDict, compliance_actions):
 
     ``compliance_actions``: :attr:`PegHoleEnv.compliance_actions` (index and range of each
     learned gain). The feed-forward force is held within ``limits.max_force_N``, its lateral
-    components also within ``action.max_ff_xy_N``. With ``action.residual`` the action is an
-    offset from the scripted pull (:func:`residual_action`).
+    components also within ``action.max_ff_xy_N``. With ``action.residual`` the pull is a
+    residual on the scripted 20 mm/s and the integrators are held (:func:`residual_action`).
     """
     a = residual_action(action, c, compliance_actions)
     H = info["hole_mat"]
