@@ -8,14 +8,21 @@ penetration, the F/T wrench of every control step and the peg depth are compared
 
 Tolerances, and why: both run float32 with the same solver options; they differ in the
 collision routines (MJX-JAX's capsule-box and box-box against MuJoCo Warp's primitive
-narrowphase with ``nativeccd`` off) and in summation order. Measured on 2026-12-04 (2-core CPU,
-mujoco-mjx 3.17.0, warp-lang 1.18.0) after 4 steps: RectExtract, the same 12 contacts,
-deepest penetration 1.779 vs 1.769 um, wrench within 0.005 N / N m of 1-4 N, depth within
-1e-4 mm; DualExtract, the same 6 contacts, penetration 10.23 vs 10.59 um, wrench within
-0.014 N of up to 2 N, depth within 2e-4 mm; start joints within 1e-6 rad. The bounds are a
-few times the largest measured difference and well below the signal: ``WRENCH_ATOL`` 0.1 N
-(N m), ``PEN_ATOL`` 1 um (10 % of the dual's penetration), ``DEPTH_ATOL`` 0.01 mm,
-``Q0_ATOL`` 1e-5 rad, contact counts equal.
+narrowphase with ``nativeccd`` off) and in summation order. The wrench of the first step agrees
+to 1e-3 N; from the second step on, RectExtract's 12 contacts share the load differently with
+any change of float order: MJX-JAX against ITSELF, with and without XLA's
+``--xla_cpu_use_fusion_emitters=false`` (core/runtime.py), differs by up to 0.85 N per step,
+as much as Warp does (0.84 N), while the mean wrench over the steps moves by at most 0.025 N
+(Warp vs MJX-JAX: 0.025 N). So the per-step wrench is compared at the first step only and the
+steps' mean wrench (the impulse the peg receives) over all of them. Measured on 2026-12-06
+(2-core CPU, mujoco-mjx 3.17.0, warp-lang 1.18.0, jax 0.10.2, the suite's XLA flags) after 4
+steps: RectExtract, the same 12 contacts, deepest penetration 2.25 vs 1.76 um, first-step
+wrench within 0.001 N, mean wrench within 0.025 N / N m of 1-2 N, depth within 0.004 mm;
+DualExtract, the same 6 contacts, penetration 10.1 vs 10.6 um, wrench within 0.013 N per step,
+depth within 2e-4 mm; start joints within 1e-6 rad. The bounds are a few times the largest
+measured difference and well below the signal: ``WRENCH_ATOL`` 0.1 N (N m), ``PEN_ATOL`` 1 um
+(10 % of the dual's penetration), ``DEPTH_ATOL`` 0.01 mm, ``Q0_ATOL`` 1e-5 rad, contact
+counts equal.
 
 Skipped, with the reason, only where warp-lang is not installed (``.ci/run`` installs it for
 this file).
@@ -92,7 +99,10 @@ def test_warp_on_the_cpu_matches_mjx_jax(name):
     assert ref["contacts"] > 0, "the pull must be in contact to compare contacts"
     assert warp["contacts"] == ref["contacts"]
     assert warp["pen"] == pytest.approx(ref["pen"], abs=PEN_ATOL)
-    np.testing.assert_allclose(warp["wrench"], ref["wrench"], atol=WRENCH_ATOL)
+    np.testing.assert_allclose(warp["wrench"][0], ref["wrench"][0], atol=WRENCH_ATOL)
+    np.testing.assert_allclose(
+        warp["wrench"].mean(axis=0), ref["wrench"].mean(axis=0), atol=WRENCH_ATOL
+    )
     np.testing.assert_allclose(warp["depth"], ref["depth"], atol=DEPTH_ATOL)
 
 
