@@ -1,7 +1,8 @@
 """Publish a training run's policy as a pretrained policy inside the package.
 
     python train/publish_policy.py RUN_DIR NAME [--checkpoint best|final|STEP] [--episodes 256]
-                                                [--screen 256] [--batch 256 --parts DIR]
+                                                [--seed 0] [--screen 256] [--batch 256 --parts DIR]
+                                                [--protocol FILE]
 
 (NAME: rect, dual, rect_hard, dual_hard) copies the chosen policy into its ``PRETRAINED`` folder
 (``peghole_mjx/policies/*``) with the run's ``metrics.csv``, ``curves.png`` and
@@ -34,6 +35,7 @@ from __future__ import annotations
 import argparse
 import json
 import shutil
+import sys
 from pathlib import Path
 
 from peghole_mjx.training.selection import checkpoint_dir, choose_checkpoint, eval_rows
@@ -108,16 +110,28 @@ def main() -> int:
     ap.add_argument(
         "--candidates", type=int, nargs="+", help="with --screen: screen these steps only"
     )
+    ap.add_argument(
+        "--protocol",
+        type=Path,
+        help="the declared protocol whose publication rule this follows (recorded in "
+        "policy.json's selection and evaluation.json)",
+    )
     args = ap.parse_args()
+    if args.protocol is not None and not args.protocol.is_file():
+        raise SystemExit(f"--protocol {args.protocol}: no such file")
 
-    from peghole_mjx.policies import PRETRAINED, check_as_trained, upgrade_policy
+    from peghole_mjx.files.provenance import commit, run_provenance
+    from peghole_mjx.policies import PRETRAINED, check_as_trained, load_policy, upgrade_policy
     from peghole_mjx.training.evaluate import evaluate
 
+    source_commit = commit()  # before the package's policy files are replaced (then dirty)
     if args.screen > 0:
         src, selection = screen_checkpoints(args.run, args.screen, args.candidates)
     else:
         src, selection = choose_checkpoint(args.run, args.checkpoint)
     meta = json.loads((src / "policy.json").read_text())
+    if args.protocol is not None:
+        selection = {**selection, "protocol": args.protocol.as_posix()}
     meta["selection"] = selection
     check_as_trained(meta, str(src))  # before the published policy is replaced
     dest = PRETRAINED[args.name]
@@ -135,6 +149,19 @@ def main() -> int:
 
         plot_curves([args.run], dest / "curves.png")
     res = evaluate(args.name, args.episodes, seed=args.seed, batch=args.batch, parts_dir=args.parts)
+    env_config = json.loads(load_policy(args.name).make_env().config.to_json())
+    res.update(
+        {
+            "checkpoint_rule": selection["rule"],
+            **({"protocol": selection["protocol"]} if "protocol" in selection else {}),
+            "reward_kind": env_config["reward_config"]["kind"],
+            "env_config": env_config,
+            **run_provenance(["python", "train/publish_policy.py", *sys.argv[1:]]),
+            "commit": source_commit,
+            "config": "see env_config (the policy's full env config), episodes, seed, "
+            "checkpoint_rule; the training settings are in policy.json beside it",
+        }
+    )
     (dest / "evaluation.json").write_text(json.dumps(res, indent=2) + "\n")
     print(json.dumps({"selection": selection, "force_reduction_pct": res["force_reduction_pct"]}))
     print(dest)
