@@ -205,11 +205,18 @@ def test_deploy_runs_with_jax_and_mujoco_blocked(exports):
     assert res.stdout.startswith("ok")
 
 
-def test_deployed_command_follows_the_decoding(exports):
+def test_deployed_command_follows_the_decoding(exports, tmp_path):
     """One step by hand: the action moves the commanded tip and feed-forward by its steps and
-    sets the learned gains on their ranges (action.json's decode), the rotation is held."""
-    folder = exports("rect")
+    sets the learned gains on their ranges (action.json's decode), the rotation is held. The
+    plain decoding: the exported rect policy is a residual one (``decode.residual``, applied
+    before this decoding and tested in tests/test_residual.py), so this copy drops the entry."""
+    import shutil
+
+    folder = tmp_path / "plain"
+    shutil.copytree(exports("rect"), folder)
     spec = json.loads((folder / "action.json").read_text())
+    assert spec["decode"].pop("residual", None) is not None
+    (folder / "action.json").write_text(json.dumps(spec))
     p = DeployedPolicy(folder)
     p.reset(commanded_tip_m=(0.001, -0.002, -0.03), commanded_tilt_rad=(0.005, 0.0, 0.0))
     a = np.array([1.0, -0.5, 0.8, 1.0, 0.0, -1.0, -1.0, 1.0])

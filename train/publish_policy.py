@@ -158,8 +158,8 @@ def main() -> int:
             "env_config": env_config,
             **run_provenance(["python", "train/publish_policy.py", *sys.argv[1:]]),
             "commit": source_commit,
-            "config": "see env_config (the policy's full env config), episodes, seed, "
-            "checkpoint_rule; the training settings are in policy.json beside it",
+            "config": "see env_config, episodes, seed, checkpoint_rule; env_config is the policy's "
+            "full env config, the training settings are in policy.json beside it",
         }
     )
     (dest / "evaluation.json").write_text(json.dumps(res, indent=2) + "\n")

@@ -33,6 +33,7 @@ from __future__ import annotations
 import argparse
 import csv
 import json
+import math
 from pathlib import Path
 
 import numpy as np
@@ -189,9 +190,21 @@ def _batch_flag(ev: dict) -> str:
     return f" --batch {batch}" if batch < ev["episodes"] else ""
 
 
-def paired_files(name: str) -> list[Path]:
-    """The committed paired analyses of published policy ``name`` (``paired*.json``)."""
-    return sorted(EVALS_RESULTS.glob(f"{name}_cpu-2core/paired*.json"))
+def paired_files(name: str, evaluation: dict) -> list[Path]:
+    """The committed paired analyses (``paired*.json``) of the published policy ``name`` that
+    analyse the episodes of its ``evaluation``: the same number of episodes and the same policy
+    mean F_z (to 1e-5). An analysis of an earlier policy published under the same name stays in
+    the record but is not shown beside a later one."""
+
+    def same(path: Path) -> bool:
+        paired = json.loads(path.read_text())
+        return paired.get("episodes") == evaluation["episodes"] and math.isclose(
+            paired.get("policy_mean_fz_N", math.nan),
+            evaluation["policy"]["mean_fz_N"],
+            rel_tol=1e-5,
+        )
+
+    return [p for p in sorted(EVALS_RESULTS.glob(f"{name}_cpu-2core/paired*.json")) if same(p)]
 
 
 @table("pretrained")
@@ -209,13 +222,22 @@ def pretrained() -> str:
         prov = pol.get("provenance", {})
         rect = name.startswith("rect")
         none = "no thesis result (R6: the dual RL study was not possible in PyBullet)"
+        reward = f"reward {ev['reward_kind']}, " if "reward_kind" in ev else ""
+        residual = (
+            "residual actions, "
+            if ev.get("env_config", {}).get("action", {}).get("residual")
+            else ""
+        )
+        chosen = pol.get("selection", {}).get("rule", "?")
         lines += [
             f"`{name}` ({ev['env']}, {ev['preset']}, compliance strategy "
-            f"{'on' if ev['compliance_strategy'] else 'off'}; trained for {pol['env_steps']} "
-            f"env steps on {prov.get('device', '?')}; evaluated as trained on {ev['episodes']} "
+            f"{'on' if ev['compliance_strategy'] else 'off'}, {reward}{residual}trained for "
+            f"{pol['env_steps']} env steps on {prov.get('device', '?')}, published: {chosen}; "
+            f"evaluated as trained on {ev['episodes']} "
             f"randomised episodes, seed {ev['seed']}, from "
             f"[`{rel(path)}`]({rel(path)}); "
-            f"`peghole evaluate {name} --episodes {ev['episodes']}{_batch_flag(ev)} --json` "
+            f"`peghole evaluate {name} --episodes {ev['episodes']}{_batch_flag(ev)}"
+            f"{f' --seed {seed}' if (seed := ev['seed']) else ''} --json` "
             "reproduces it):",
             "",
             "| policy | success | mean time s | mean F_z N | peak F_z N | mean F_xy N | thesis |",
@@ -240,15 +262,15 @@ def pretrained() -> str:
             f"{-th['force_reduction_pct']:+.1f} %; target: at least 29.6 % lower).",
             "",
         ]
-        lines += _both_succeed(name)
+        lines += _both_succeed(name, ev)
     return "\n".join(lines).rstrip()
 
 
-def _both_succeed(name: str) -> list[str]:
+def _both_succeed(name: str, evaluation: dict) -> list[str]:
     """The paired reductions over all episodes and over the episodes both succeed in, where a
     paired analysis is committed."""
     lines = []
-    for path in paired_files(name):
+    for path in paired_files(name, evaluation):
         paired = json.loads(path.read_text())
         both = paired.get("both_succeed")
         if both:
