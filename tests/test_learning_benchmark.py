@@ -98,6 +98,20 @@ def test_task_summary_reports_the_untrained_evaluation_beside_the_final_force():
     assert t["final_mean_fz_N"] == pytest.approx((5.0 + 3.0 + 5.0) / 3)
 
 
+def test_zero_action_summary_is_each_final_policy_minus_the_zero_action():
+    """On a residual env: the zero action's result on the final episodes and each final policy
+    minus it with t intervals over seeds; None (no residual) reports nothing."""
+    per_seed = [_seed(200, 1.0, 1.0, 0, fz=(3.0, 8.0)), _seed(201, 0.5, 1.0, 0, fz=(5.0, 8.0))]
+    zero = {"success_rate": 0.75, "mean_fz_N": 4.0, "peak_fz_N": 9.0, "mean_time_s": 8.0}
+    z = lb.zero_action_summary(zero, per_seed)
+    assert z["zero_action"] == zero
+    assert z["final_minus_zero_action_success"] == pytest.approx(0.0)  # +0.25 and -0.25
+    assert z["final_minus_zero_action_mean_fz_N"] == pytest.approx(0.0)  # -1 and +1
+    lo, hi = z["final_minus_zero_action_mean_fz_ci95"]
+    assert lo < -1.0 and hi > 1.0  # two seeds: a wide t interval (t 12.7)
+    assert lb.zero_action_summary(None, per_seed) == {"zero_action": None}
+
+
 def test_seed_record_reads_the_untrained_evaluation_at_step_0(tmp_path):
     run = tmp_path / "run"
     run.mkdir()

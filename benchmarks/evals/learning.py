@@ -23,6 +23,11 @@ Per task, in ``learning.json`` (and one row per task in ``learning.csv``):
   with a 95 % Student-t interval over seeds;
 * the untrained policy's evaluation (env step 0, the training evaluation's episodes): its
   success and mean F_z per seed and their means, beside the final policy's mean F_z;
+* on residual envs (``action.residual``), the zero action (the untrained residual policy's
+  deterministic action: the scripted pull with mid-range gains) on the final episodes
+  (``zero_action``, one rollout per task, kept in ``zero_action_<task>_<N>_seed<S>.json``),
+  and each final policy minus it, success and mean F_z, with 95 % t intervals over seeds:
+  what learning added on the same episodes;
 * the figure ``curves_<task>.png``: evaluation success against env steps, the seeds' mean and
   95 % band.
 
@@ -107,6 +112,9 @@ CSV_FIELDS = (
     "peak_fz_minus_baseline_N",
     "untrained_mean_fz_N",
     "final_mean_fz_N",
+    "zero_action_success",
+    "zero_action_mean_fz_N",
+    "final_minus_zero_action_mean_fz_N",
     "engine",
     "reward_kind",
     "device",
@@ -197,6 +205,62 @@ def task_summary(task: str, per_seed: list[dict]) -> dict[str, Any]:
         "untrained_mean_fz_N": _mean_of(per_seed, "untrained_mean_fz_N"),
         "final_mean_fz_N": _mean_of(per_seed, "policy_mean_fz_N"),
     }
+
+
+def zero_action_summary(zero: dict | None, per_seed: list[dict]) -> dict[str, Any]:
+    """The zero action's result on the final episodes (``zero``: a rollout summary, None on a
+    non-residual env) and each final policy minus it (success, mean F_z) with t intervals."""
+    if zero is None:
+        return {"zero_action": None}
+    d_success = [s["final_success"] - zero["success_rate"] for s in per_seed]
+    d_fz = [s["policy_mean_fz_N"] - zero["mean_fz_N"] for s in per_seed]
+    return {
+        "zero_action": {
+            k: zero[k] for k in ("success_rate", "mean_fz_N", "peak_fz_N", "mean_time_s")
+        },
+        "final_minus_zero_action_success": float(np.mean(d_success)),
+        "final_minus_zero_action_success_ci95": t_ci(d_success),
+        "final_minus_zero_action_mean_fz_N": float(np.mean(d_fz)),
+        "final_minus_zero_action_mean_fz_ci95": t_ci(d_fz),
+    }
+
+
+def zero_action_eval(task: str, seed: int, args, out: Path) -> dict | None:
+    """The zero action on the final episodes of ``task`` (its seed ``seed`` run's env; every
+    seed's env is the same), or None when the env is not residual. Kept in
+    ``zero_action_<task>_<N>_seed<S>.json`` under ``out``: the rollout runs once."""
+    from peghole_mjx.envs.rollout import rollout
+    from peghole_mjx.policies import load_policy
+
+    bundle = load_policy(str(_run_dir(out, task, seed) / "final_policy"))
+    env = bundle.make_env()
+    if not env.config.action.residual:
+        return None
+    path = out / f"zero_action_{task}_{args.final_episodes}_seed{args.final_seed}.json"
+    if path.exists():
+        return json.loads(path.read_text())["summary"]
+    zero = np.zeros(env.action_size, np.float32)
+    res = rollout(
+        env,
+        lambda obs, rng: zero,
+        args.final_episodes,
+        seed=args.final_seed,
+        label=f"zero action rollout ({task})",
+    )
+    summary = res.summary().as_dict()
+    record = {
+        "task": task,
+        "what": "the residual env's zero action (the untrained residual policy's deterministic "
+        "action) on the final episodes",
+        "episodes": args.final_episodes,
+        "seed": args.final_seed,
+        "summary": summary,
+        "env_config": json.loads(env.config.to_json()),
+        "config": "see task, episodes, seed, env_config",
+        **run_provenance(sys.argv),
+    }
+    fileio.write_text(path, dumps(record, indent=2) + "\n")
+    return summary
 
 
 def _mean_of(per_seed: list[dict], key: str) -> float | None:
@@ -395,6 +459,9 @@ def _run(args, command: list[str]) -> int:
         stem, curves = f"{stem}_partial", f"{curves}partial_"
     for task, per_seed in results.items():
         summary = task_summary(task, per_seed)
+        if args.stack == "ours":
+            zero = zero_action_eval(task, per_seed[0]["seed"], args, out)
+            summary |= zero_action_summary(zero, per_seed)
         cfg = per_seed[0]["config"]
         over = cfg["env_overrides"]
         if args.stack == "ours":
@@ -453,6 +520,9 @@ def _run(args, command: list[str]) -> int:
                 "peak_fz_minus_baseline_N": t["peak_fz_minus_baseline_N"],
                 "untrained_mean_fz_N": t["untrained_mean_fz_N"],
                 "final_mean_fz_N": t["final_mean_fz_N"],
+                "zero_action_success": (t.get("zero_action") or {}).get("success_rate"),
+                "zero_action_mean_fz_N": (t.get("zero_action") or {}).get("mean_fz_N"),
+                "final_minus_zero_action_mean_fz_N": t.get("final_minus_zero_action_mean_fz_N"),
                 "engine": t["engine"],
                 "reward_kind": t["reward_kind"],
                 "device": prov["device"],
