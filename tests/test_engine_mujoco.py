@@ -264,13 +264,16 @@ def test_state_renders_through_mjdata(env, fns):
 
 
 def test_a_policy_on_another_engine_is_evaluated_as_trained():
-    """The published rect policy was trained on MJX: on MuJoCo C it is the same task (the
-    engine is provenance, issue 51, 2026-12-05), while a task entry is still a difference."""
+    """The published rect policy was trained on MuJoCo C (since 2026-12-06): on MJX it is the
+    same task (the engine is provenance, issue 51, 2026-12-05), while a task entry is still a
+    difference."""
     from peghole_mjx.policies import load_policy
     from peghole_mjx.training.evaluate import check_requested_env, requested_config
 
     bundle = load_policy("rect")
-    assert bundle.trained_engine() == {"engine": "mjx"}
+    assert bundle.trained_engine() == {"engine": "mujoco"}
+    on_mjx = requested_config(bundle, {"engine": "mjx", "impl": "jax"})
+    assert check_requested_env(bundle, on_mjx, cross=False) == {}
     on_c = requested_config(bundle, {"engine": "mujoco", "mujoco_threads": 2})
     assert check_requested_env(bundle, on_c, cross=False) == {}
     with pytest.raises(UserInputError, match="episode_length"):

@@ -97,23 +97,26 @@ def test_a_residual_rollout_on_mujoco_c_equals_the_plain_env_of_the_mapped_actio
 
 
 def test_a_deployed_residual_policy_decodes_as_the_env(tmp_path):
-    """The export's ``decode.residual`` makes the deployment apply the env's affine map."""
-    plain = DeployedPolicy(export_policy("rect", tmp_path / "plain")["out"])
-    folder = tmp_path / "residual"
-    shutil.copytree(plain.folder, folder)
+    """The export's ``decode.residual`` makes the deployment apply the env's affine map: the
+    published rect policy (a residual one since 2026-12-06) against a copy of its export with
+    the entry removed (the plain decoding) driven by the mapped action."""
+    res = DeployedPolicy(export_policy("rect", tmp_path / "residual")["out"])
+    folder = tmp_path / "plain"
+    shutil.copytree(res.folder, folder)
     spec = json.loads((folder / "action.json").read_text())
-    assert spec["decode"]["residual"] is None  # the published policy is not residual
-    spec["decode"]["residual"] = _residual_spec(_load(RESIDUAL))
+    assert spec["decode"]["residual"] == _residual_spec(_load(RESIDUAL))
     assert spec["decode"]["residual"]["gain"] == [0, 0, 0.25, 0, 0, 0, 1, 1]
+    residual = spec["decode"]["residual"]
+    spec["decode"]["residual"] = None
     (folder / "action.json").write_text(json.dumps(spec))
-    res = DeployedPolicy(folder)
+    plain = DeployedPolicy(folder)
     for p in (plain, res):
         p.reset(commanded_tip_m=(0.001, -0.002, -0.03))
     got, want = res.decode(A), plain.decode(_mapped(A))
     np.testing.assert_array_equal(got.tip_target_m, want.tip_target_m)
     np.testing.assert_array_equal(got.force_ff_hole_N, want.force_ff_hole_N)
     assert (got.k_xy_N_m, got.k_rot_Nm_rad) == (want.k_xy_N_m, want.k_rot_Nm_rad)
-    spec["decode"]["residual"]["offset"] = [2.0] * len(A)
+    spec["decode"]["residual"] = {**residual, "offset": [2.0] * len(A)}
     (folder / "action.json").write_text(json.dumps(spec))
     with pytest.raises(CorruptFileError, match=r"residual.offset must be 8 numbers in \[-1"):
         DeployedPolicy(folder)
