@@ -356,7 +356,8 @@ def run_seed(task: str, seed: int, args, out: Path) -> dict[str, Any]:
 
 
 def plot_task(task: str, per_seed: list[dict], path: Path, title: str | None = None) -> None:
-    """Evaluation success against env steps: the seeds' mean and 95 % band, each seed thin."""
+    """Evaluation success against env steps: the seeds' mean and 95 % band (Student t over
+    seeds, clipped to [0, 1]), each seed thin."""
     fig, ax = plt.subplots(figsize=(6, 3.5))
     steps = sorted({s for rec in per_seed for s, _ in rec["curve"]})
     grid = np.full((len(per_seed), len(steps)), np.nan)
@@ -369,7 +370,9 @@ def plot_task(task: str, per_seed: list[dict], path: Path, title: str | None = N
     sd = np.nanstd(grid, axis=0, ddof=1) if len(per_seed) > 1 else np.zeros_like(mean)
     half = sps.t.ppf(0.975, np.maximum(n - 1, 1)) * sd / np.sqrt(np.maximum(n, 1))
     ax.plot(steps, mean, color="C0", lw=2, label=f"mean of {len(per_seed)} seeds")
-    ax.fill_between(steps, mean - half, mean + half, color="C0", alpha=0.25, label="95 % band")
+    # a success rate lies in [0, 1]: the t band is clipped there
+    lo, hi = np.clip(mean - half, 0.0, 1.0), np.clip(mean + half, 0.0, 1.0)
+    ax.fill_between(steps, lo, hi, color="C0", alpha=0.25, label="95 % band (t, clipped to [0, 1])")
     ax.axhline(TARGET, color="C3", ls="--", lw=1)
     ax.set(xlabel="env steps", ylabel="evaluation success", ylim=(-0.02, 1.02), title=title or task)
     ax.legend(loc="lower right", fontsize=8)
