@@ -96,6 +96,7 @@ def test_task_summary_reports_the_untrained_evaluation_beside_the_final_force():
     assert t["untrained_success_mean"] == pytest.approx(0.75)
     assert t["untrained_mean_fz_N"] == pytest.approx(4.5)
     assert t["final_mean_fz_N"] == pytest.approx((5.0 + 3.0 + 5.0) / 3)
+    assert t["at_95_untrained"] == 1  # seed 200 was at 95 % before any learning
 
 
 def test_zero_action_summary_is_each_final_policy_minus_the_zero_action():
