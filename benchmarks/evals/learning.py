@@ -76,7 +76,7 @@ import numpy as np
 from scipy import stats as sps
 from tqdm import tqdm
 
-from benchmarks.common import parse_overrides, write_rows
+from benchmarks.common import EVALS_RESULTS, parse_overrides, rel, table, write_rows
 from benchmarks.evals import learning_stacks as stacks
 from peghole_mjx.core.errors import UserInputError
 from peghole_mjx.core.validation import dumps
@@ -386,6 +386,63 @@ def plot_task(task: str, per_seed: list[dict], path: Path, title: str | None = N
     fig.tight_layout()
     fig.savefig(path, dpi=120)
     plt.close(fig)
+
+
+# ----------------------------------------------------------------------------- docs tables
+#: the residual protocol's result files (docs/research/residual.md): the four tasks, the shapes
+RESIDUAL_FILES = (
+    EVALS_RESULTS / "learning_residual_cpu-2core" / "learning.json",
+    EVALS_RESULTS / "learning_residual_shapes_cpu-2core" / "cylinder" / "learning.json",
+    EVALS_RESULTS / "learning_residual_shapes_cpu-2core" / "keyed" / "learning.json",
+)
+
+
+def _ci_text(ci: list[float] | None, fmt: str) -> str:
+    return "-" if ci is None else f"[{ci[0]:{fmt}}, {ci[1]:{fmt}}]"
+
+
+@table("learning_residual")
+def residual_table() -> str:
+    """The residual benchmark per task (final policies over seeds) from its result files."""
+    lines = [
+        "| task | seeds | final success per seed | IQM [95 % CI] | seeds >= 0.95 | collapsed "
+        "| mean F_z minus baseline, N | zero action: success / mean F_z | final minus zero "
+        "action: success; mean F_z, N | file |",
+        "|---|---|---|---|---|---|---|---|---|---|",
+    ]
+    for path in RESIDUAL_FILES:
+        if not path.exists():
+            lines.append(f"| pending | | | | | | | | | `{rel(path)}` |")
+            continue
+        doc = json.loads(path.read_text())
+        for t in doc["tasks"]:
+            name = t["task"]
+            if name == "MeshExtract":  # a shape: its folder names it
+                name = f"MeshExtract ({path.parent.name})"
+            n = len(t["seeds"])
+            zero = t.get("zero_action")
+            zero_cell = (
+                "-" if zero is None else f"{zero['success_rate']:.3f} / {zero['mean_fz_N']:.3g} N"
+            )
+            learned = (
+                "-"
+                if zero is None
+                else f"{t['final_minus_zero_action_success']:+.3f} "
+                f"{_ci_text(t['final_minus_zero_action_success_ci95'], '+.3f')}; "
+                f"{t['final_minus_zero_action_mean_fz_N']:+.3g} "
+                f"{_ci_text(t['final_minus_zero_action_mean_fz_ci95'], '+.3g')}"
+            )
+            lines.append(
+                f"| {name} | {t['seeds'][0]}-{t['seeds'][-1]} | "
+                f"{' '.join(f'{v:.2f}' for v in t['final_success'])} | "
+                f"{t['final_success_iqm']:.2f} {_ci_text(t['final_success_ci95'], '.2f')} | "
+                f"{round(t['share_at_95'] * n)} of {n} | "
+                f"{len(t['seeds_collapsed'])} of {n} | "
+                f"{t['mean_fz_minus_baseline_N']:+.3g} "
+                f"{_ci_text(t['mean_fz_minus_baseline_ci95'], '+.3g')} | {zero_cell} | "
+                f"{learned} | [`{path.parent.name}/learning.json`]({rel(path)}) |"
+            )
+    return "\n".join(lines)
 
 
 def main(argv: list[str] | None = None) -> int:
