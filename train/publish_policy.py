@@ -122,7 +122,8 @@ def main() -> int:
 
     from peghole_mjx.files.provenance import commit, run_provenance
     from peghole_mjx.policies import PRETRAINED, check_as_trained, load_policy, upgrade_policy
-    from peghole_mjx.training.evaluate import evaluate
+    from peghole_mjx.sim.engines import engine_overrides
+    from peghole_mjx.training.evaluate import evaluate, requested_config
 
     source_commit = commit()  # before the package's policy files are replaced (then dirty)
     if args.screen > 0:
@@ -149,7 +150,9 @@ def main() -> int:
 
         plot_curves([args.run], dest / "curves.png")
     res = evaluate(args.name, args.episodes, seed=args.seed, batch=args.batch, parts_dir=args.parts)
-    env_config = json.loads(load_policy(args.name).make_env().config.to_json())
+    # the config of the env the evaluation ran (its engine resolved), without building it again
+    ran_on = engine_overrides(res["engine"])
+    env_config = json.loads(requested_config(load_policy(args.name), ran_on).to_json())
     res.update(
         {
             "checkpoint_rule": selection["rule"],

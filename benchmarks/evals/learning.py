@@ -238,14 +238,15 @@ def zero_action_eval(task: str, seed: int, args, out: Path) -> dict | None:
     ``zero_action_<task>_<N>_seed<S>.json`` under ``out``: the rollout runs once."""
     from peghole_mjx.envs.rollout import rollout
     from peghole_mjx.policies import load_policy
+    from peghole_mjx.training.evaluate import requested_config
 
     bundle = load_policy(str(_run_dir(out, task, seed) / "final_policy"))
-    env = bundle.make_env()
-    if not env.config.action.residual:
+    if not requested_config(bundle).action.residual:  # read from the config, no env built
         return None
     path = out / f"zero_action_{task}_{args.final_episodes}_seed{args.final_seed}.json"
     if path.exists():
         return json.loads(path.read_text())["summary"]
+    env = bundle.make_env()
     zero = np.zeros(env.action_size, np.float32)
     res = rollout(
         env,
