@@ -36,7 +36,6 @@ from benchmarks.baselines.time_to_success import HARD_ENV, compare
 from benchmarks.baselines.time_to_success import result_path as ours_result_path
 from benchmarks.common import (
     EVALS_RESULTS,
-    ROOT,
     STUDIES_RESULTS,
     fmt_settings_diff,
     rel,
@@ -44,9 +43,11 @@ from benchmarks.common import (
     table,
 )
 from benchmarks.evals.experiments import ordered
+from benchmarks.evals.paired_reduction import POLICIES, how_trained
 from benchmarks.evals.rl_vs_rlcs import fmt_interval
 from benchmarks.evals.rl_vs_rlcs import result_files as rl_vs_rlcs_files
 from benchmarks.perf.throughput import ENGINES_CSV, engine_rate, engine_rows
+from peghole_mjx.training.selection import FINAL_RULE
 
 #: the thesis's side of each row: (claim, what the thesis states, where it states it)
 THESIS: dict[str, tuple[str, str, str]] = {
@@ -93,8 +94,6 @@ THESIS: dict[str, tuple[str, str, str]] = {
         "",
     ),
 }
-
-POLICIES = ROOT / "peghole_mjx" / "policies"
 MAX_ROWS = 15
 #: the verdicts a thesis-claim row may carry
 VERDICTS = ("reproduced", "not reproduced", "reproduced in another regime", "not compared")
@@ -257,13 +256,9 @@ def _published(name: str, ev: dict, meta: dict) -> str:
     """How a published policy was trained and chosen, in a few words (its ``policy.json`` and
     ``evaluation.json``)."""
     over = meta.get("env_overrides", {})
-    sel = meta.get("selection", {})
-    chosen = "final policy" if "final" in sel.get("rule", "") else "chosen checkpoint"
-    words = [f"`{name}`: {ev['env']}, {ev['preset']}", chosen]
-    if over.get("action.residual"):
-        words.append("residual actions")
-    if "reward_kind" in ev:
-        words.append(f"reward {ev['reward_kind']}")
+    final = meta.get("selection", {}).get("rule") == FINAL_RULE
+    words = [f"`{name}`: {ev['env']}, {ev['preset']}"]
+    words += ["final policy" if final else "chosen checkpoint", *how_trained(ev, meta)]
     pinned = _pinned(over)
     if pinned:
         words.append(pinned)

@@ -207,6 +207,18 @@ def paired_files(name: str, evaluation: dict) -> list[Path]:
     return [p for p in sorted(EVALS_RESULTS.glob(f"{name}_cpu-2core/paired*.json")) if same(p)]
 
 
+def how_trained(ev: dict, pol: dict) -> list[str]:
+    """A published policy's learner settings in words, where they are not the thesis's: its
+    residual actions (``policy.json``'s env overrides) and its reward (``evaluation.json``
+    records the kind since 2026-12-06). The one description for the docs tables."""
+    words = []
+    if pol.get("env_overrides", {}).get("action.residual"):
+        words.append("residual actions")
+    if "reward_kind" in ev:
+        words.append(f"reward {ev['reward_kind']}")
+    return words
+
+
 @table("pretrained")
 def pretrained() -> str:
     """The committed pretrained policies' evaluations (``evaluation.json`` beside each)."""
@@ -222,17 +234,12 @@ def pretrained() -> str:
         prov = pol.get("provenance", {})
         rect = name.startswith("rect")
         none = "no thesis result (R6: the dual RL study was not possible in PyBullet)"
-        reward = f"reward {ev['reward_kind']}, " if "reward_kind" in ev else ""
-        residual = (
-            "residual actions, "
-            if ev.get("env_config", {}).get("action", {}).get("residual")
-            else ""
-        )
-        chosen = pol.get("selection", {}).get("rule", "?")
         lines += [
             f"`{name}` ({ev['env']}, {ev['preset']}, compliance strategy "
-            f"{'on' if ev['compliance_strategy'] else 'off'}, {reward}{residual}trained for "
-            f"{pol['env_steps']} env steps on {prov.get('device', '?')}, published: {chosen}; "
+            f"{'on' if ev['compliance_strategy'] else 'off'}, "
+            f"{''.join(w + ', ' for w in how_trained(ev, pol))}trained for "
+            f"{pol['env_steps']} env steps on {prov.get('device', '?')}, published: "
+            f"{pol.get('selection', {}).get('rule', '?')}; "
             f"evaluated as trained on {ev['episodes']} "
             f"randomised episodes, seed {ev['seed']}, from "
             f"[`{rel(path)}`]({rel(path)}); "

@@ -29,10 +29,14 @@ def checkpoint_dir(run: Path, step: int) -> Path:
     return path
 
 
+#: the ``selection.rule`` of a published run's last policy (``--checkpoint final``)
+FINAL_RULE = "final policy of the run"
+
+
 def choose_checkpoint(run: Path, which: str) -> tuple[Path, dict]:
     """The policy directory of ``which`` (best | final | a step number) and why it was chosen."""
     if which == "final":
-        return run / "final_policy", {"rule": "final policy of the run"}
+        return run / "final_policy", {"rule": FINAL_RULE}
     rows = eval_rows(run)
     if which == "best":
         row = max(rows, key=lambda r: (float(r["eval/success_rate"]), -float(r["eval/mean_fz_N"])))
