@@ -205,3 +205,50 @@ def test_the_package_root_holds_the_layers_folders_and_three_entry_modules():
         "files",
         "core",
     }
+
+
+#: the functions that advance a physics state, called or passed on (``jax.jit(mjx.step)``):
+#: MuJoCo C's step functions and rollout, MJX's step, a ``mujoco.batch`` step or rollout
+_STEPPING = re.compile(
+    r"\b(mj_step[12]?|mujoco\.rollout|mjx\.step|batch\.step|batch\.rollout)\b(?!_)"
+)
+
+
+def _code_lines(path: Path) -> list[tuple[int, str]]:
+    """The lines of a module that hold code (docstrings and comments left out)."""
+    text = path.read_text()
+    doc_lines: set[int] = set()
+    for node in ast.walk(ast.parse(text)):
+        body = getattr(node, "body", None)
+        if isinstance(body, list) and body and isinstance(body[0], ast.Expr):
+            v = body[0].value
+            if isinstance(v, ast.Constant) and isinstance(v.value, str):
+                doc_lines.update(range(v.lineno, v.end_lineno + 1))
+    return [
+        (i, line.split("#", 1)[0])
+        for i, line in enumerate(text.splitlines(), 1)
+        if i not in doc_lines
+    ]
+
+
+def test_physics_is_stepped_in_the_sim_layer_only():
+    """Issue 51: the sim layer (``peghole_mjx/sim/``) is the only place the package steps
+    physics; the envs, the experiments, the geometry checks and the contact replay are its
+    clients."""
+    found = [
+        f"{path.relative_to(ROOT)}:{i}: {line.strip()}"
+        for path in sorted(PACKAGE.rglob("*.py"))
+        if "sim" not in path.relative_to(PACKAGE).parts[:1]
+        for i, line in _code_lines(path)
+        if _STEPPING.search(line)
+    ]
+    assert found == []
+    # the pattern finds what it must (the sim layer steps)
+    sim_hits = [
+        line
+        for path in (PACKAGE / "sim").rglob("*.py")
+        for _, line in _code_lines(path)
+        if _STEPPING.search(line)
+    ]
+    assert any("mjx.step" in s for s in sim_hits) and any("mj_step" in s for s in sim_hits)
+    assert any("batch.step" in s for s in sim_hits)

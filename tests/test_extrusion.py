@@ -235,8 +235,10 @@ def test_builtin_meshes_through_the_exact_path_match_their_code_made_pieces(name
             assert code_vol < vol
         code[label + "_exact"] = res.hulls
     from peghole_mjx.geometry.task_check import place_and_check
+    from peghole_mjx.sim.free import run_passive
 
     kw = {"friction": 0.266, "peg_mass_kg": 0.02, "radial_clearance_mm": 0.1}
+    kw["run_passive"] = run_passive
     a = place_and_check(peg, hole, code["peg"], code["hole"], **kw)
     b = place_and_check(peg, hole, code["peg_exact"], code["hole_exact"], **kw)
     assert b.effective_min_mm == pytest.approx(a.effective_min_mm, abs=0.002)  # 1 % of 0.2
@@ -262,6 +264,7 @@ def test_the_other_builtins_through_task_make_from_stl_get_their_code_made_piece
     from peghole_mjx.envs.mesh_extract import default_config
     from peghole_mjx.geometry.decompose import estimate_radial_clearance_mm
     from peghole_mjx.geometry.task_check import place_and_check
+    from peghole_mjx.sim.free import run_passive
 
     parts = builtin_parts(name, 0.2)
     for label, mesh in (("peg", parts.peg_mesh), ("hole", parts.hole_mesh)):
@@ -291,6 +294,7 @@ def test_the_other_builtins_through_task_make_from_stl_get_their_code_made_piece
         "peg_mass_kg": task_make.PEG_DENSITY_KG_M3 * float(seen["peg"].volume),
         "radial_clearance_mm": estimate_radial_clearance_mm(seen["peg"], seen["hole"]),
         "sim": sim_options(default_config()),
+        "run_passive": run_passive,
     }
     code = place_and_check(seen["peg"], seen["hole"], parts.peg_hulls, parts.hole_hulls, **kw)
     stl = place_and_check(seen["peg"], seen["hole"], peg_hulls, hole_hulls, **kw)

@@ -30,14 +30,15 @@ pytest.importorskip("rtree")  # trimesh's proximity and ray queries
 def no_work(monkeypatch):
     """Make every expensive step fail the test: CoACD, scene building, figure evaluation."""
     from peghole_mjx.analysis import figures
-    from peghole_mjx.geometry import check, decompose, mjcf
+    from peghole_mjx.geometry import decompose, mjcf
+    from peghole_mjx.sim import free
 
     def forbidden(*a, **k):
         raise AssertionError("work started before the refusal")
 
     monkeypatch.setattr(decompose, "run_coacd", forbidden)
     monkeypatch.setattr(mjcf, "build_scene", forbidden)
-    monkeypatch.setattr(check, "check_spec", forbidden)
+    monkeypatch.setattr(free, "check_spec", forbidden)
     monkeypatch.setattr(figures, "write_family", forbidden)
 
 

@@ -14,9 +14,6 @@ from peghole_mjx.geometry import cli as gcli
 from peghole_mjx.geometry import mjcf
 from peghole_mjx.geometry.check import (
     CLEARANCE_TOLERANCE,
-    check_spec,
-    drop_gap_mujoco,
-    drop_test,
     effective_clearance_mm,
     effective_clearance_range_mm,
     free_peg_model,
@@ -28,6 +25,7 @@ from peghole_mjx.geometry.parts import (
     resolve_representation,
 )
 from peghole_mjx.geometry.specs import MM, PRESETS
+from peghole_mjx.sim.free import check_spec, drop_gap_mujoco, drop_test
 
 REPO = Path(__file__).resolve().parents[1]
 

@@ -233,6 +233,7 @@ def test_pieces_that_block_the_hole_are_refused():
     """The checks on the convex pieces (what the simulator collides), not the meshes: a piece
     in the clearance (hull intrusion) and one across the way out (the extraction sweep)."""
     from peghole_mjx.geometry.task_check import place_and_check
+    from peghole_mjx.sim.free import run_passive
 
     parts = builtin_parts("hex", 0.2)
     mm = 1e-3
@@ -241,6 +242,7 @@ def test_pieces_that_block_the_hole_are_refused():
         return _box((x0, -20, z0), (x1, 20, z1)).vertices * mm
 
     kw = {"friction": 0.266, "peg_mass_kg": 0.02, "radial_clearance_mm": 0.1}
+    kw["run_passive"] = run_passive
     for extra, match in (
         (slab(10.0, 10.15, -30, -20), "touch or overlap"),  # into the 0.1 mm gap beside a flat
         (slab(-20, 20, 12, 13), "not extractable along"),  # a lid over the peg's top (10 mm)

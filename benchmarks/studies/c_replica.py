@@ -1,14 +1,15 @@
-"""The compliance-centre experiment in MuJoCo C (float64), one world at a time: the studies'
+"""The compliance-centre experiment in MuJoCo C (float64), one world per call: the studies'
 name for the experiment's ``mujoco`` engine.
 
 The replica is not a second implementation: :func:`pull_c` is
 :meth:`peghole_mjx.experiments.compliance.Extraction.trace` on the ``mujoco`` engine (the
 experiment's scene, keyframe start, F/T tare, command schedule, contact rule and law, the
-NumPy twin :func:`peghole_mjx.control.reference.impedance_torque`), whose float64 operations
-are in the order that wrote the studies' committed traces, so that they reproduce bit for
-bit. Used by :mod:`benchmarks.studies.pull_speed`, :mod:`benchmarks.studies.friction_frontier`
-and :mod:`benchmarks.studies.contact_diagnosis`.
-"""
+NumPy twin :func:`peghole_mjx.control.reference.impedance_torque`, stepped by the sim layer's
+:class:`peghole_mjx.sim.engine_mujoco.MujocoEngine`). The studies' committed traces were written
+by the experiment's earlier per-world loop; how closely they reproduce on the sim layer is
+measured by :mod:`benchmarks.studies.sim_reproduction`. Used by
+:mod:`benchmarks.studies.pull_speed`, :mod:`benchmarks.studies.friction_frontier` and
+:mod:`benchmarks.studies.contact_diagnosis`."""
 
 from __future__ import annotations
 

@@ -326,7 +326,8 @@ def run_mjx_rows(todo: list[tuple], parts: Path, rows: dict[str, dict]) -> None:
                 f.flush()
 
 
-def _job(args: tuple) -> dict:
+def world_row(args: tuple) -> dict:
+    """One world's row of the study from a :func:`jobs` item (its trace summarised)."""
     key, c, speed_mm_s, world, oracle, coulomb = args
     cfg = experiment_config(_geometry(c), speed_mm_s, None, coulomb)
     t0 = time.perf_counter()
@@ -915,7 +916,7 @@ def main() -> int:
         jax.config.update("jax_enable_x64", True)  # float32 loses slow sliding friction
         run_mjx_rows(todo, parts, rows)
     else:
-        run_to_parts(_job, todo, parts, rows, args.processes, "pull speed")
+        run_to_parts(world_row, todo, parts, rows, args.processes, "pull speed")
     summary = [
         s
         for k, b, v in summarised(rows, plan)

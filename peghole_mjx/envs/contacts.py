@@ -47,6 +47,7 @@ from peghole_mjx.envs import iiwa_constants as names
 from peghole_mjx.envs.extraction import PegHoleEnv
 from peghole_mjx.files import fileio
 from peghole_mjx.geometry.specs import MM
+from peghole_mjx.sim import free
 from peghole_mjx.sim.engine_mujoco import STATE_SPEC
 from peghole_mjx.sim.engines import batch_reset, select_worlds
 
@@ -250,11 +251,12 @@ class ContactReplay:
 
     Inside ``with ContactReplay(env) as replay:`` each env step runs in the env with the
     engine's torque record on (``engine.ctrl_log``); ``replay.max_active(prev, state)`` then
-    replays that step's physics steps world by world in one ``MjData``, from the step's start
-    state with the recorded torques and the world's friction scale, counting after every
-    ``mj_step``. The replay is the env's own step: its end state must equal the env's bit for
-    bit (a RuntimeError otherwise). How the presets' and the task folders' contact caps are
-    measured (:func:`max_active_contacts`, ``benchmarks/perf/contact_caps.py``)."""
+    replays that step's physics steps world by world in one ``MjData``
+    (:func:`peghole_mjx.sim.free.replay_ctrl`), from the step's start state with the recorded
+    torques and the world's friction scale, counting after every ``mj_step``. The replay is
+    the env's own step: its end state must equal the env's bit for bit (a RuntimeError
+    otherwise). How the presets' and the task folders' contact caps are measured
+    (:func:`max_active_contacts`, ``benchmarks/perf/contact_caps.py``)."""
 
     def __init__(self, env: PegHoleEnv):
         if env.engine.name != "mujoco":
@@ -286,13 +288,15 @@ class ContactReplay:
         fscale = np.asarray(prev.info["friction_scale"], float)
         finite = np.asarray(state.metrics["nan"]) == 0
         most = 0
+
+        def count(d: mujoco.MjData) -> None:
+            nonlocal most
+            most = max(most, int(np.sum(d.contact.dist[: d.ncon] <= 0.0)))
+
         for w in range(ctrl.shape[0]):
             m.pair_friction[:] = self.friction0 * fscale[w]
             self.env.engine.to_mjdata(jax.tree.map(lambda x, w=w: x[w], start), m, d)
-            for tau in ctrl[w]:
-                d.ctrl[:] = tau
-                mujoco.mj_step(m, d)
-                most = max(most, int(np.sum(d.contact.dist[: d.ncon] <= 0.0)))
+            free.replay_ctrl(m, d, ctrl[w], count)
             mujoco.mj_getState(m, d, self.row, STATE_SPEC)
             if finite[w] and not np.array_equal(self.row, end[w].view(np.float64)):
                 raise RuntimeError(f"world {w}: the replayed step differs from the env's")

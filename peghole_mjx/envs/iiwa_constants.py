@@ -1,23 +1,27 @@
 """Names of the iiwa peg-hole scene that the envs look up (the scene: geometry/mjcf.py).
 
-The joint and actuator names, the tool-down orientation and the keyframe are defined where the
-scene is built (:mod:`peghole_mjx.geometry.mjcf`) and re-exported here, so an env reads every
+The names, the tool-down orientation and the keyframe are defined where the scene is built
+(:mod:`peghole_mjx.geometry.mjcf`) and re-exported here, so an env reads every
 name it resolves from one module.
 """
 
 from __future__ import annotations
 
-from peghole_mjx.geometry.mjcf import ACTUATORS, JOINTS, TOOL_DOWN_MAT
+from peghole_mjx.geometry.mjcf import (
+    ACTUATORS,
+    FLANGE_SITE,
+    FT_FORCE_SENSOR,
+    FT_SITE,
+    FT_TORQUE_SENSOR,
+    HOLE_BODY,
+    HOLE_MOUTH_SITE,
+    JOINTS,
+    PEG_BODY,
+    PEG_TIP_SITE,
+    START_KEYFRAME,
+    TOOL_DOWN_MAT,
+)
 
-PEG_BODY = "peg"
-HOLE_BODY = "hole"  # a mocap body: the env moves the hole per episode
-PEG_TIP_SITE = "peg_tip"
-HOLE_MOUTH_SITE = "hole_mouth"
-FLANGE_SITE = "flange"
-FT_SITE = "ft_site"  # frame of the flange F/T sensor
-FT_FORCE_SENSOR = "ft_force"
-FT_TORQUE_SENSOR = "ft_torque"
-START_KEYFRAME = "inserted"  # the peg inserted in the nominal hole
 #: Newton steps of the start-pose IK (from the keyframe to a hole moved by a few mm and deg;
 #: a solver setting, not a task parameter)
 START_IK_ITERATIONS = 4

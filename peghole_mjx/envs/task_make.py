@@ -68,6 +68,7 @@ from peghole_mjx.geometry.mjcf import build_scene
 from peghole_mjx.geometry.revolve import revolved_pair
 from peghole_mjx.geometry.shapes import builtin_parts
 from peghole_mjx.geometry.task_check import TaskGeometry, check_blind_hole, place_and_check
+from peghole_mjx.sim import free
 
 #: the peg's density when no mass is given (kg/m^3; printed PLA, as ``models decompose``)
 PEG_DENSITY_KG_M3 = 1200.0
@@ -333,6 +334,7 @@ def build_task(
             friction=friction,
             peg_mass_kg=mass,
             radial_clearance_mm=radial,
+            run_passive=free.run_passive,
             sim=sim,
         )
         if exact:

@@ -13,7 +13,8 @@ from peghole_mjx.core.validation import arg
 COMMANDS = "peghole_mjx.experiments.commands"
 ENGINE_HELP = (
     "auto (default: mujoco where JAX has no GPU, else mjx; mjx with --x64), mjx (MJX-JAX, all "
-    "worlds in one batch, float32 unless --x64) or mujoco (MuJoCo C, float64, one world at a time)"
+    "worlds in one batch, float32 unless --x64) or mujoco (MuJoCo C, float64, all worlds in "
+    "one mujoco.batch)"
 )
 
 

@@ -17,19 +17,26 @@ the mean and the peak per-step normal contact force, the fraction of steps with 
 loaded, and the number of wall-contact switches. Two-point contact is judged on the per-side
 mean force of each sample (:func:`two_point_windows`), not on same-step coincidence.
 
-Engines (:class:`Extraction`'s ``engine``, ``ExperimentConfig.engine``): ``mjx`` runs all
+Engines (:class:`Extraction`'s ``engine``, ``ExperimentConfig.engine``): both step on the sim
+layer (:mod:`peghole_mjx.sim`), the only place the package steps physics. ``mjx`` runs all
 worlds of a (preset, friction) through ``jax.vmap`` inside one jitted, time-chunked
-``lax.scan`` (tqdm shows the chunks), so a sweep batches every cell of a preset into the same
-compiled call; ``mujoco`` runs each world in MuJoCo C, float64, with the NumPy twin of the law
-(:func:`peghole_mjx.control.reference.impedance_torque`), one ``MjData`` per world, and also
-gives a per-step trace (:meth:`Extraction.trace`, :data:`TRACE_COLUMNS`). What the engines
-share exists once here: the compiled scene (with optional ``mjOption`` fields), the keyframe
-start, the F/T tare, the step count, the command schedule (:func:`rest_pose_errors`,
-:func:`command`), the wall-side contact rule (:func:`contact_sides`), the loaded sides and
-wall switches (:func:`loaded_sides`, :func:`wall_switch`), the per-step record
-(:func:`record_row`, :func:`update_stats`) and its 20 ms aggregation
-(:func:`aggregate_samples`); each engine does the same float operations as before the two were
-joined (2026-12-02), so that their committed results reproduce.
+``lax.scan`` (tqdm shows the chunks) of :meth:`peghole_mjx.sim.engines.MjxEngine.law_step`, so
+a sweep batches every cell of a preset into the same compiled call; ``mujoco`` runs every world
+of the table in one ``mujoco.batch`` (float64) of
+:class:`peghole_mjx.sim.engine_mujoco.MujocoEngine` (:meth:`~MujocoEngine.law_step`, its
+contacts per step :meth:`~MujocoEngine.contacts`), with the NumPy twin of the law, and also
+gives a per-step trace (:meth:`Extraction.trace`, :data:`TRACE_COLUMNS`). The experiment is the
+engines' scripted client: what it owns exists once here: the compiled scene (with optional
+``mjOption`` fields), the keyframe start, the F/T tare, the step count, the command schedule
+(:func:`rest_pose_errors`, :func:`command`), the wall-side contact rule
+(:func:`contact_sides`), the loaded sides and wall switches (:func:`loaded_sides`,
+:func:`wall_switch`), the per-step record (:func:`record_row`, :func:`update_stats`) and its
+20 ms aggregation (:func:`aggregate_samples`). Until 2026-12-06 the ``mujoco`` engine was a
+per-world ``MjData`` loop of its own (``mj_jac``, MuJoCo's auto-reset on); the committed results
+it wrote reproduce on the sim layer's engine (``benchmarks/studies/sim_reproduction.py``: the
+late peak F_z within 3e-5 N on the dual worlds rerun; the file holds every world's differences).
+The ``mjx`` path does the same float operations as before (the law and ``mjx.step``, now
+called through the engine).
 
 MuJoCo C's multi-point CCD (on by default in MuJoCo 4) is off in every compiled scene
 (``geometry.mjcf._set_options``): MJX collides convex meshes with its own routine, and with
@@ -57,12 +64,14 @@ from peghole_mjx.analysis import dual as an_dual
 from peghole_mjx.analysis import oracle
 from peghole_mjx.analysis import rect as an_rect
 from peghole_mjx.control import GAINS, ImpedanceController, Target, make_params, rot_y
-from peghole_mjx.control.reference import impedance_torque, rot_from_rotvec
+from peghole_mjx.control.reference import tool_centre
 from peghole_mjx.core import progress as prog
 from peghole_mjx.core.errors import UserInputError
+from peghole_mjx.core.rotations import rot_from_rotvec
 from peghole_mjx.geometry.mjcf import SimOptions, compile_scene
 from peghole_mjx.geometry.specs import MM, PRESETS
-from peghole_mjx.sim.engines import default_engine
+from peghole_mjx.sim.engine_mujoco import MujocoEngine
+from peghole_mjx.sim.engines import MjxEngine, SceneIds, default_engine
 from peghole_mjx.sim.mjx_fixes import cone_hessian_fix
 
 #: thesis values to compare with (Sec 3.5, R1): reductions of the mean peak extraction force
@@ -193,7 +202,7 @@ class ExperimentConfig:
     #: the law's damping ratio zeta (None: ``GAINS.damping_ratio``)
     damping_ratio: float | None = None
     #: the engine (:data:`ENGINES`): ``mjx`` (MJX-JAX, batched) or ``mujoco`` (MuJoCo C,
-    #: float64, one world at a time), ``auto`` (:func:`auto_engine`, made concrete by
+    #: float64, all worlds in one ``mujoco.batch``), ``auto`` (:func:`auto_engine`, made concrete by
     #: :class:`Extraction`); recorded by :func:`config_dict` when not ``mjx``. The commands
     #: default to ``auto`` and pass the concrete engine; this field stays ``mjx``, the engine of
     #: the records written before the engine was a field (their resume keys stay as they were)
@@ -415,13 +424,6 @@ def _sum_in_order(a: np.ndarray) -> np.ndarray:
     return s
 
 
-_BAD_STATE = (
-    mujoco.mjtWarning.mjWARN_BADQPOS,
-    mujoco.mjtWarning.mjWARN_BADQVEL,
-    mujoco.mjtWarning.mjWARN_BADQACC,
-)
-
-
 class Extraction:
     """One preset's experiment (at friction ``mu``) on one engine: the compiled scene, the
     law, the F/T tare and the step count, shared; then per engine the jitted MJX chunk
@@ -486,16 +488,17 @@ class Extraction:
             )
         self.n_chunks = math.ceil(self.n_pull / cfg.chunk_steps)
         self.n_steps = self.n_chunks * cfg.chunk_steps
+        ids = SceneIds.from_model(m, self.ctl.qadr)
+        #: the sim layer's engine that steps this experiment's physics
+        self.sim: MjxEngine | MujocoEngine
         if self.engine == "mjx":
             self._peg_geom = jnp.asarray(m.geom_bodyid == m.body("peg").id)
-            self.mx = mjx.put_model(m, impl="jax")
-            dx0 = mjx.put_data(m, d, impl="jax")
-            # with jax_enable_x64 a step returns some int32 fields as int64: start with its
-            # dtypes
-            out = jax.eval_shape(mjx.step, self.mx, dx0)
-            self.dx0 = jax.tree.map(lambda a, o: a.astype(o.dtype), dx0, out)
+            self.sim = MjxEngine(mjx.put_model(m, impl="jax"), self.ctl, ids, impl="jax")
+            self.dx0 = self.sim.start_data(m, d)
             self._chunk = jax.jit(self._chunk_fn)
             self._compiled = False  # the first chunk of the first run compiles _chunk
+        else:
+            self.sim = MujocoEngine(m, self.ctl, ids, n_substeps=1, threads=0)
 
     # ---- engine mjx: one world ---------------------------------------------------------
     def init_world(self, L_C, delta0, beta0, theta0, k_lat, k_rot):
@@ -521,12 +524,10 @@ class Extraction:
     def _side_forces(self, dx):
         """Normal contact force summed over the contacts facing +x and -x, N, and the deepest
         contact, m (:func:`contact_sides`)."""
-        con = dx._impl.contact
-        addr = con.efc_address
-        fn = jnp.where(addr >= 0, dx._impl.efc_force[jnp.maximum(addr, 0)], 0.0)
-        nx = con.frame[:, 0, 0] if con.frame.ndim == 3 else con.frame[:, 0]
-        active = (addr >= 0) & jnp.isfinite(con.dist)
-        plus, minus, pen = contact_sides(jnp, nx, self._peg_geom[con.geom1], fn, active, con.dist)
+        c = self.sim.contact_forces(dx, self._peg_geom)
+        plus, minus, pen = contact_sides(
+            jnp, c.normal_x, c.peg_is_geom1, c.normal_force, c.active, c.dist
+        )
         return jnp.sum(plus), jnp.sum(minus), jnp.max(pen, initial=0.0)
 
     def step(self, carry, t):
@@ -537,8 +538,7 @@ class Extraction:
         vel, offset, tilt = command(jnp, t, self.n_settle, cfg.speed_m_s, err[0], err[1])
         target = target._replace(pos=target.pos + vel * self.dt, vel=vel)
         cmd = target._replace(pos=target.pos + offset, mat=rot_y(tilt) @ target.mat)
-        dx_c, out = self.ctl.apply(self.mx, dx, cmd, params)
-        new = mjx.step(self.mx, dx_c)
+        new, out = self.sim.law_step(dx, cmd, params)
         ok = jnp.all(jnp.isfinite(new.qpos)) & jnp.all(jnp.isfinite(new.qvel)) & (stats[1] == 0)
         dx = jax.tree.map(lambda a, b: jnp.where(ok, a, b), new, dx)
         plus, minus, pen = self._side_forces(dx)
@@ -603,125 +603,115 @@ class Extraction:
             bar.close()
         return np.concatenate(recs, axis=0), np.concatenate(stats, axis=0)
 
-    # ---- engine mujoco: one world at a time ----------------------------------------------
-    def _pull_world(self, world: dict[str, float], n: int, record: bool = True):
-        """One world in MuJoCo C, float64, for ``n`` physics steps: its per-step trace (n,
-        :data:`TRACE_COLUMNS`) and, with ``record``, its per-step record (n, :data:`REC`) and
-        statistics (6,). The float64 operations of the trace are those that wrote the studies'
-        committed traces, in the same order (:mod:`benchmarks.studies.c_replica`). MuJoCo
-        C resets a diverged state itself, with a warning: from that step on the world has the
-        NaN flag."""
-        m, cfg, ctl = self.m, self.cfg, self.ctl
-        d = mujoco.MjData(m)
-        mujoco.mj_resetDataKeyframe(m, d, m.key("inserted").id)
-        mujoco.mj_forward(m, d)
-        qadr, dadr, act = ctl.qadr, ctl.dadr, ctl.act
-        lo, hi = m.actuator_ctrlrange[act].T
-        peg = ctl.body_id
-        L_C = float(world["L_C"])
-        centre = ctl.tip_local - np.array([0.0, 0.0, L_C])
-        q0 = d.qpos[qadr].copy()
-        R0 = d.xmat[peg].reshape(3, 3).copy()
-        x0 = d.xpos[peg] + R0 @ centre
-        kr, kl = float(world["k_rot"]), float(world["k_lat"])
+    # ---- engine mujoco: every world in one MuJoCo C batch -----------------------------------
+    def law_params(self, tab: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
+        """The law's parameters of every world of ``tab`` as float64 arrays (worlds, ...) by
+        ``ImpedanceParams`` field, the values :meth:`init_world` gives the MJX path."""
+        cfg, n = self.cfg, len(tab["L_C"])
+        kl, kr = np.asarray(tab["k_lat"], float), np.asarray(tab["k_rot"], float)
         off = cfg.off_axis_rotational_stiffness_Nm_rad
-        ko = kr if off is None else off
-        stiff = np.array([kl, kl, cfg.axial_stiffness_N_m, ko, kr, ko])
+        ko = kr if off is None else np.full(n, float(off))
+        kz = np.full(n, float(cfg.axial_stiffness_N_m))
         zeta = GAINS.damping_ratio if cfg.damping_ratio is None else cfg.damping_ratio
         null = (GAINS.null_stiffness_Nm_rad, GAINS.null_damping_Nms_rad)
-        cap = np.asarray(ctl.limits.max_wrench, float)
-        dt, tip = self.dt, self.tip_site
-        lateral, tilt0 = rest_pose_errors(
-            math, L_C, float(world["delta0"]), float(world["beta0"]), float(world["theta0"])
-        )
-        # the schedule of every step at once (elementwise: the same values step by step)
-        vel, offset, tilt = command(
-            np, np.arange(n)[:, None], self.n_settle, cfg.speed_m_s, lateral, tilt0
-        )
-        jacp, jacr, M = np.zeros((3, m.nv)), np.zeros((3, m.nv)), np.zeros((m.nv, m.nv))
-        f6 = np.zeros(6)
-        depth, sums = np.zeros(n), np.zeros((n, 3))  # tangential, normal, extraction force
-        contacts = []  # per step: normal force, normal x (geom1 to geom2), peg is geom1, dist
-        ft_R, ft_s, wrench, bad = np.zeros((n, 9)), np.zeros((n, 3)), np.zeros((n, 6)), []
-        ft = slice(self.ft_adr, self.ft_adr + 3)
-        z = 0.0
-        for t in range(n):
-            z += vel[t, 2] * dt
-            pos = x0 + np.array([0.0, 0.0, z]) + offset[t]
-            Rc = rot_from_rotvec(np.array([0.0, tilt[t, 0], 0.0])) @ R0
-            R = d.xmat[peg].reshape(3, 3)
-            xc = d.xpos[peg] + R @ centre
-            mujoco.mj_jac(m, d, jacp, jacr, xc, peg)
-            mujoco.mj_fullM(m, d, M)
-            J = np.vstack([jacp, jacr])[:, dadr]
-            bias = d.qfrc_bias[dadr]
-            if cfg.compensate_joint_damping:
-                bias = bias - d.qfrc_passive[dadr]
-            tau, wrench[t] = impedance_torque(
-                J, M[np.ix_(dadr, dadr)], bias, d.qpos[qadr], d.qvel[dadr], xc, R,
-                pos, Rc, vel[t], stiff, zeta, np.zeros(6), q0, null, cap, lo, hi,
-            )  # fmt: skip
-            d.ctrl[act] = tau
-            mujoco.mj_step(m, d)
-            k = d.ncon
-            fn, nx, own, dist = np.zeros(k), np.zeros(k), np.zeros(k, bool), np.zeros(k)
-            f_t = f_n = f_z = 0.0
-            for i in range(k):
-                c = d.contact[i]
-                mujoco.mj_contactForce(m, d, i, f6)
-                if f6[0] <= 0:
-                    continue
-                own[i] = m.geom_bodyid[c.geom1] == peg
-                frame = c.frame.reshape(3, 3)
-                on_peg = -(1.0 if own[i] else -1.0) * (frame.T @ f6[:3])  # world, on the peg
-                fn[i], nx[i], dist[i] = f6[0], frame[0, 0], c.dist
-                f_t += math.hypot(f6[1], f6[2])
-                f_n += f6[0]
-                f_z -= on_peg[2]
-            contacts.append((fn, nx, own, dist))
-            depth[t], sums[t] = self.mouth_z - d.site_xpos[tip][2], (f_t, f_n, f_z)
-            if record:
-                ft_R[t], ft_s[t] = d.site_xmat[self.ft_site], d.sensordata[ft]
-                bad.append(sum(d.warning[w].number for w in _BAD_STATE))
-        # the contact rule over every step's contacts (padded with contacts that carry nothing)
-        per = np.zeros((4, n, max((len(c[0]) for c in contacts), default=0)))
-        for t, c in enumerate(contacts):
-            per[:, t, : len(c[0])] = c
-        fn, nx, own, dist = per[0], per[1], per[2] > 0, per[3]
-        plus, minus, pens = contact_sides(np, nx, own, fn, fn > 0, dist)
-        fp, fm, pen = _sum_in_order(plus), _sum_in_order(minus), np.max(pens, -1, initial=0.0)
-        trace = np.column_stack([depth, fp, fm, pen, sums])
-        if not record:
-            return trace, None, None
-        # the experiment's record, as the mjx engine keeps it
-        ok = np.asarray(bad) == 0
-        pen = np.where(ok, pen, 0.0)
-        lp, lm, side = loaded_sides(np, fp, fm)
-        stats, last = np.zeros(6), np.zeros(n)
-        for t in range(n):
-            last[t] = stats[4]
-            stats = update_stats(np, stats, t * dt, depth[t], pen[t], ok[t], side[t])
-        f = (ft_R.reshape(n, 3, 3) @ ft_s[:, :, None])[:, :, 0] - self.tare_world
-        ratio = np.max(np.abs(wrench) / cap, axis=1)
-        switch = wall_switch(side, last)
-        rec = record_row(np, depth, f.T, fp, fm, lp, lm, switch, ratio, pen).T
-        return trace, rec, stats
+        return {
+            "stiffness": np.stack([kl, kl, kz, ko, kr, ko], axis=1),
+            "damping_ratio": np.full(n, float(zeta)),
+            "L_C": np.asarray(tab["L_C"], float),
+            "wrench_ff": np.zeros((n, 6)),
+            "q_null": np.tile(self.q0[self.ctl.qadr], (n, 1)),
+            "null_gains": np.tile(np.asarray(null, float), (n, 1)),
+        }
 
-    def _run_mujoco(self, tab: dict[str, np.ndarray], progress: bool):
-        """Every world of ``tab`` in MuJoCo C, one after the other: (samples, stats)."""
+    def _pull(self, tab: dict[str, np.ndarray], n: int, record: bool = True, progress=False):
+        """Every world of ``tab`` in MuJoCo C (float64) on the sim layer's engine
+        (:meth:`peghole_mjx.sim.engine_mujoco.MujocoEngine.law_step`, all worlds in one batch),
+        for ``n`` physics steps: per world its per-step trace (n, :data:`TRACE_COLUMNS`) and,
+        with ``record``, its per-step record (n, :data:`REC`) and statistics (6,). A world
+        that raises in MuJoCo or goes non-finite keeps its last finite state and has the NaN
+        flag from that step on, as on ``mjx``."""
+        sim, cfg, ctl = self.sim, self.cfg, self.ctl
         nw = len(tab["L_C"])
-        bar = prog.bar(nw, f"{self.preset} pull (MuJoCo C)", unit="world", enabled=progress)
-        recs, stats = [], []
+        p = sim.pool(np.tile(self.q0, (nw, 1)))
+        prm = self.law_params(tab)
+        peg, tip = ctl.body_id, self.tip_site
+        R0 = np.array(p.xmat[:, peg]).reshape(nw, 3, 3)
+        x0, _ = tool_centre(np.array(p.xpos[:, peg]), R0, ctl.tip_local, prm["L_C"])
+        lateral, tilt0 = rest_pose_errors(
+            np, prm["L_C"], tab["delta0"], tab["beta0"], tab["theta0"]
+        )
+        dt = self.dt
+        data = mujoco.MjData(sim.model)
+        depth, sums = np.zeros((nw, n)), np.zeros((nw, n, 3))  # tangential, normal, extraction
+        contacts = [[] for _ in range(nw)]  # per step: normal force, normal x, own, dist
+        ft_R, ft_s = np.zeros((nw, n, 9)), np.zeros((nw, n, 3))
+        wrench, ok = np.zeros((nw, n, 6)), np.ones((nw, n), bool)
+        ft = slice(self.ft_adr, self.ft_adr + 3)
+        alive = np.ones(nw, bool)
+        z = np.zeros(nw)
+        bar = prog.bar(n, f"{self.preset} pull (MuJoCo C)", unit="step", enabled=progress)
         try:
-            for i in range(nw):
-                world = {k: float(tab[k][i]) for k in WORLD_KEYS}
-                _, rec, st = self._pull_world(world, self.n_steps)
-                recs.append(aggregate_samples(np, rec, self.record_every))
-                stats.append(st)
+            for t in range(n):
+                vel, offset, tilt = command(
+                    np, t, self.n_settle, cfg.speed_m_s, lateral[:, None], tilt0
+                )
+                vel = np.broadcast_to(vel, (nw, 3))
+                z = z + vel[:, 2] * dt
+                pos = x0 + z[:, None] * np.array([0.0, 0.0, 1.0]) + offset
+                Rc = np.stack([rot_from_rotvec(np.array([0.0, a, 0.0])) for a in tilt]) @ R0
+                step_ok, wrench[:, t] = sim.law_step(p, pos, Rc, vel, prm)
+                alive &= step_ok
+                ok[:, t] = alive
+                for w in range(nw):
+                    c = sim.contacts(p, w, data)
+                    contacts[w].append((c.normal_force, c.normal_x, c.peg_is_geom1, c.dist))
+                    sums[w, t] = (
+                        _sum_in_order(c.tangential),
+                        _sum_in_order(c.normal_force),
+                        -_sum_in_order(c.peg_force_z),
+                    )
+                depth[:, t] = self.mouth_z - p.site_xpos[:, tip, 2]
+                if record:
+                    ft_R[:, t] = p.site_xmat[:, self.ft_site]
+                    ft_s[:, t] = p.sensordata[:, ft]
                 bar.update()
         finally:
             bar.close()
-        return np.stack(recs), np.stack(stats)
+        out = []
+        cap = np.asarray(ctl.limits.max_wrench, float)
+        for w in range(nw):
+            # the contact rule over every step's contacts (padded with contacts that carry
+            # nothing)
+            per = np.zeros((4, n, max((len(c[0]) for c in contacts[w]), default=0)))
+            for t, c in enumerate(contacts[w]):
+                per[:, t, : len(c[0])] = c
+            fn, nx, own, dist = per[0], per[1], per[2] > 0, per[3]
+            plus, minus, pens = contact_sides(np, nx, own, fn, fn > 0, dist)
+            fp, fm = _sum_in_order(plus), _sum_in_order(minus)
+            pen = np.max(pens, -1, initial=0.0)
+            trace = np.column_stack([depth[w], fp, fm, pen, sums[w]])
+            if not record:
+                out.append((trace, None, None))
+                continue
+            # the experiment's record, as the mjx engine keeps it
+            pen = np.where(ok[w], pen, 0.0)
+            lp, lm, side = loaded_sides(np, fp, fm)
+            stats, last = np.zeros(6), np.zeros(n)
+            for t in range(n):
+                last[t] = stats[4]
+                stats = update_stats(np, stats, t * dt, depth[w, t], pen[t], ok[w, t], side[t])
+            f = (ft_R[w].reshape(n, 3, 3) @ ft_s[w][:, :, None])[:, :, 0] - self.tare_world
+            ratio = np.max(np.abs(wrench[w]) / cap, axis=1)
+            switch = wall_switch(side, last)
+            rec = record_row(np, depth[w], f.T, fp, fm, lp, lm, switch, ratio, pen).T
+            out.append((trace, rec, stats))
+        return out
+
+    def _run_mujoco(self, tab: dict[str, np.ndarray], progress: bool):
+        """Every world of ``tab`` in MuJoCo C, in one batch: (samples, stats)."""
+        res = self._pull(tab, self.n_steps, progress=progress)
+        recs = [aggregate_samples(np, rec, self.record_every) for _, rec, _ in res]
+        return np.stack(recs), np.stack([st for _, _, st in res])
 
     def trace(self, world: dict[str, float]) -> tuple[np.ndarray, int, float]:
         """One world's per-step trace (``mujoco`` engine only), from the start until the tip
@@ -730,10 +720,11 @@ class Extraction:
         :data:`WORLD_KEYS` (SI, rad)."""
         if self.engine != "mujoco":
             raise UserInputError(
-                "a per-step trace comes from the mujoco engine (MuJoCo C, one world at a time); "
+                "a per-step trace comes from the mujoco engine (MuJoCo C, float64); "
                 f"this experiment runs on {self.engine}"
             )
-        trace, _, _ = self._pull_world(world, self.n_pull, record=False)
+        tab = {k: np.array([float(world[k])]) for k in WORLD_KEYS}
+        ((trace, _, _),) = self._pull(tab, self.n_pull, record=False)
         return trace, self.n_settle, self.dt
 
     # ---- both engines ----------------------------------------------------------------------

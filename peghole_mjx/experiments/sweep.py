@@ -768,7 +768,7 @@ def _simulate_slice(
     geometry: str,
 ) -> dict[str, np.ndarray]:
     """Run worlds ``s0 .. s0 + batch`` (on ``mjx`` the last slice is padded to the compiled
-    batch size; the ``mujoco`` engine runs one world at a time and needs no padding)."""
+    batch size; the ``mujoco`` engine needs no padding)."""
     n = min(batch, nw - s0)
     pad = np.r_[np.arange(s0, s0 + n), np.full(batch - n if ex.engine == "mjx" else 0, s0)]
     res = ex.run(progress=False, table={k: v[pad] for k, v in table.items()})

@@ -1,28 +1,29 @@
-"""Model checks: effective clearance by MuJoCo distance queries and the free-peg drop test.
+"""Model checks: effective clearance by MuJoCo distance queries, and the free-peg drop test's
+model, duration, tolerance and report.
 
 * :func:`effective_clearance_range_mm` - the diametral free travel of the centred, aligned peg
   until contact, found by bisection on ``mujoco.mj_geomDistance`` over every peg-hole contact
   pair, minimum and maximum over several directions in the hole plane (4 for rectangular holes,
   ``2 n`` for round ones, each measured both ways); :func:`effective_clearance_mm` is the
   minimum. Each collision representation (``parts.REPRESENTATIONS``) is checked on its own.
-* :func:`drop_test` - the free peg, released centred and aligned with its tip at the hole
-  mouth, falls under gravity; the gap between its tip and the hole bottom is measured in
-  MuJoCo C and in MJX-JAX. A hole filled by its convex hull would stop the peg at the mouth.
+* the drop test - the free peg (:func:`free_peg_model`), released centred and aligned with its
+  tip at the hole mouth, falls under gravity; the gap between its tip and the hole bottom is
+  measured in MuJoCo C and in MJX-JAX. A hole filled by its convex hull would stop the peg at
+  the mouth. The drop is stepped in :mod:`peghole_mjx.sim.free` (``drop_test``), which also
+  fills a :class:`PresetReport` per preset (``check_spec``): physics is stepped in ``sim/``
+  only; :func:`drop_duration_s`, :data:`DROP_TOLERANCE_MM` and :class:`DropResult` are here.
 """
 
 from __future__ import annotations
 
-import functools
 import math
 from dataclasses import asdict, dataclass
 
-import jax
 import mujoco
 import numpy as np
 
 from peghole_mjx.core._mjx import mjx
 from peghole_mjx.geometry import mjcf
-from peghole_mjx.geometry.parts import resolve_representation
 from peghole_mjx.geometry.specs import MM, DualSpec, PegHoleSpec
 
 #: the drop test passes if the tip ends within this distance of the hole bottom
@@ -121,7 +122,8 @@ def effective_clearance_range_mm(
 
 @dataclass(frozen=True)
 class DropResult:
-    """Outcome of a drop test: gaps between tip and hole bottom, mm."""
+    """Outcome of a drop test (:func:`peghole_mjx.sim.free.drop_test`): gaps between tip and
+    hole bottom, mm."""
 
     gap_mujoco_mm: float
     gap_mjx_mm: float | None
@@ -146,66 +148,10 @@ def drop_duration_s(depth_m: float) -> float:
     return math.sqrt(2 * depth_m / 9.81) + 0.15
 
 
-def drop_gap_mujoco(m: mujoco.MjModel, depth_m: float) -> float:
-    """Drop in MuJoCo C; returns tip-to-bottom gap in mm at the end."""
-    d = mujoco.MjData(m)
-    mujoco.mj_resetDataKeyframe(m, d, m.key("mouth").id)
-    n = round(drop_duration_s(depth_m) / m.opt.timestep)
-    for _ in range(n):
-        mujoco.mj_step(m, d)
-    mujoco.mj_kinematics(m, d)
-    return float(d.site("peg_tip").xpos[2] - d.site("hole_bottom").xpos[2]) / MM
-
-
-@functools.partial(jax.jit, static_argnames=("n", "tip", "bottom"))
-def _mjx_drop(mx, dx, n: int, tip: int, bottom: int):
-    """Scan ``n`` MJX steps and return the tip height above the hole bottom (m).
-
-    Module-level and taking the model as an argument, so presets of the same shape share one
-    compiled function.
-    """
-
-    def body(dx, _):
-        return mjx.step(mx, dx), None
-
-    dx, _ = jax.lax.scan(body, dx, None, length=n)
-    dx = mjx.kinematics(mx, dx)
-    return dx.site_xpos[tip, 2] - dx.site_xpos[bottom, 2]
-
-
-def drop_gap_mjx(m: mujoco.MjModel, depth_m: float) -> float:
-    """Drop in MJX (impl jax); returns tip-to-bottom gap in mm (NaN if the state blew up)."""
-    mx = mjx.put_model(m, impl="jax")
-    d0 = mujoco.MjData(m)
-    mujoco.mj_resetDataKeyframe(m, d0, m.key("mouth").id)
-    dx = mjx.put_data(m, d0, impl="jax")
-    n = round(drop_duration_s(depth_m) / m.opt.timestep)
-    gap = _mjx_drop(mx, dx, n, m.site("peg_tip").id, m.site("hole_bottom").id)
-    return float(gap) / MM
-
-
-def drop_test(
-    spec: PegHoleSpec, m: mujoco.MjModel | None = None, mjx_too: bool = True
-) -> DropResult:
-    """Drop the free peg into the hole in MuJoCo C and (optionally) MJX-JAX."""
-    m = m or free_peg_model(spec)
-    depth = spec.hole_depth_mm * MM
-    gap_c = drop_gap_mujoco(m, depth)
-    if not mjx_too:
-        return DropResult(gap_c, None, "not run")
-    if (m.geom_type == mujoco.mjtGeom.mjGEOM_CYLINDER).any():
-        return DropResult(gap_c, None, "not run: cylinder-box is MuJoCo Warp only")
-    try:
-        gap_x = drop_gap_mjx(m, depth)
-        err = None if math.isfinite(gap_x) else "NaN state"
-    except NotImplementedError as exc:  # an unsupported collision pair
-        gap_x, err = None, f"mjx.put_model: {exc}"
-    return DropResult(gap_c, gap_x, err)
-
-
 @dataclass(frozen=True)
 class PresetReport:
-    """One row of ``peghole models check``: one preset in one collision representation.
+    """One row of ``peghole models check``: one preset in one collision representation
+    (:func:`peghole_mjx.sim.free.check_spec`).
 
     ``contacts_allocated`` and ``constraint_rows`` are MJX-JAX's static buffer sizes for the
     env's scene (robot + peg + hole block; None where MJX-JAX cannot build it), after the
@@ -254,50 +200,3 @@ def numeric(m: mujoco.MjModel, name: str) -> int:
     """The value of a ``<numeric>`` element (0 if absent)."""
     i = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_NUMERIC, name)
     return int(m.numeric_data[m.numeric_adr[i]]) if i >= 0 else 0
-
-
-def check_spec(
-    name: str, spec: PegHoleSpec, mjx_too: bool = True, representation: str | None = None
-) -> PresetReport:
-    """Run the clearance measurement and drop tests for one spec in one representation."""
-    rep = resolve_representation(spec, representation)
-    m = free_peg_model(spec, representation=rep)
-    nominal = spec.clearance_mm
-    eff, eff_max = effective_clearance_range_mm(spec, m)
-    err_pct = 100.0 * (eff - nominal) / nominal
-    err_max_pct = 100.0 * (eff_max - nominal) / nominal
-    drop = drop_test(spec, m, mjx_too=mjx_too)
-    scene = mjcf.build_scene(spec, representation=rep).compile()
-    sizes = mjx_buffer_sizes(scene)
-    failures = []
-    # a round hole's nominal clearance holds in every direction; a rectangular one's only
-    # along the axes (its diagonal travel is longer by design): the min is checked there
-    worst = max(err_pct, err_max_pct, key=abs) if isinstance(spec, DualSpec) else err_pct
-    if abs(worst) > 100 * CLEARANCE_TOLERANCE:
-        failures.append(f"effective clearance off by {worst:+.2f} % in some direction")
-    if drop.gap_mm > DROP_TOLERANCE_MM:
-        failures.append(f"drop test: tip stopped {drop.gap_mm:.2f} mm above the bottom")
-    mjx_applies = rep != "cylinder"
-    if mjx_too and mjx_applies and not drop.mjx_ok:
-        failures.append(f"MJX-JAX: {drop.mjx_error}")
-    return PresetReport(
-        preset=name,
-        representation=rep,
-        nominal_clearance_mm=round(nominal, 6),
-        effective_clearance_mm=round(eff, 6),
-        effective_clearance_max_mm=round(eff_max, 6),
-        clearance_error_pct=round(err_pct, 3),
-        clearance_error_max_pct=round(err_max_pct, 3),
-        drop_test_gap_mm=round(drop.gap_mm, 4),
-        drop_test_gap_mujoco_mm=round(drop.gap_mujoco_mm, 4),
-        drop_test_gap_mjx_mm=None if drop.gap_mjx_mm is None else round(drop.gap_mjx_mm, 4),
-        mjx_jax_ok=drop.mjx_ok,
-        n_convex_geoms=n_collision_geoms(m),
-        n_geoms=int(scene.ngeom),
-        n_pairs=int(scene.npair),
-        contacts_allocated=None if sizes is None else sizes[0],
-        constraint_rows=None if sizes is None else sizes[1],
-        contact_cap=numeric(scene, "max_contact_points"),
-        passed=not failures,
-        failures=failures,
-    )

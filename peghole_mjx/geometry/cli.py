@@ -1,4 +1,8 @@
-"""``peghole models``: check the presets, build scenes, decompose a user's CAD parts."""
+"""``peghole models``: check the presets, build scenes, decompose a user's CAD parts.
+
+A command module: ``models check`` and ``models decompose --drop-test`` drop the free peg with
+:mod:`peghole_mjx.sim.free` (physics is stepped in ``sim/`` only), the one import of a layer
+above geometry (named in ``.importlinter``)."""
 
 from __future__ import annotations
 
@@ -24,6 +28,7 @@ from peghole_mjx.geometry.parts import (
     resolve_representation,
 )
 from peghole_mjx.geometry.specs import PRESETS, dual_spec, get_preset, rect_spec, validate
+from peghole_mjx.sim import free
 
 _size = arg("size_mm")
 
@@ -212,7 +217,7 @@ def _check(args: argparse.Namespace) -> int:
     for name, spec, rep in tqdm(
         jobs, desc="models check", unit="row", file=sys.stderr, disable=len(jobs) == 1 or args.json
     ):
-        rows.append(check.check_spec(name, spec, mjx_too=not args.no_mjx, representation=rep))
+        rows.append(free.check_spec(name, spec, mjx_too=not args.no_mjx, representation=rep))
     if args.out:
         fileio.write_text(
             args.out,
@@ -342,7 +347,7 @@ def _decompose(args: argparse.Namespace, params) -> int:
         if report.hole_depth_mm is None:
             raise UserInputError("no hole bottom under the peg (a through hole?): no drop test")
         m = mujoco.MjModel.from_xml_path(report.mjcf)
-        gap = check.drop_gap_mujoco(m, report.hole_depth_mm * 1e-3)
+        gap = free.drop_gap_mujoco(m, report.hole_depth_mm * 1e-3)
         out["drop_test_gap_mm"] = gap
         out["drop_test_passed"] = gap <= check.DROP_TOLERANCE_MM
         fileio.write_text(Path(args.out) / "report.json", dumps(out, indent=2))

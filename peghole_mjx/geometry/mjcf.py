@@ -44,6 +44,18 @@ ROBOT_XML = MJCF_DIR / "iiwa14.xml"
 #: robot joint and actuator names (looked up by name, never by index)
 JOINTS = tuple(f"joint{i}" for i in range(1, 8))
 ACTUATORS = tuple(f"joint{i}_motor" for i in range(1, 8))
+#: the names of the scene's bodies, sites, sensors and keyframe that the envs, the sim layer and
+#: the experiments look up (the strings of the robot file ``iiwa14.xml`` and of the scene built
+#: below)
+PEG_BODY = "peg"
+HOLE_BODY = "hole"  # a mocap body: the env moves the hole per episode
+PEG_TIP_SITE = "peg_tip"
+HOLE_MOUTH_SITE = "hole_mouth"
+FLANGE_SITE = "flange"
+FT_SITE = "ft_site"  # frame of the flange F/T sensor
+FT_FORCE_SENSOR = "ft_force"
+FT_TORQUE_SENSOR = "ft_torque"
+START_KEYFRAME = "inserted"  # the peg inserted in the nominal hole
 HOME_QPOS = np.array([0.0, 0.785398, 0.0, -1.5708, 0.0, 0.0, 0.0])
 
 #: hole mouth position in the world, metres (x, y); z is the block's top face

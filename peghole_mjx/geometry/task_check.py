@@ -14,8 +14,9 @@ assembled pose (+z the extraction direction) and, on the free peg among the hole
 3. **extraction sweep**: the peg pulled straight up along +z until it is clear of the hole
    part, by sphere tracing (each advance is the least distance to the hole's pieces, so no
    obstacle is stepped over): any contact is an undercut or a piece intruding into the hole;
-4. **drop test**: the free peg released at the mouth falls under gravity (MuJoCo C); its tip
-   must end within ``check.DROP_TOLERANCE_MM`` of the bottom;
+4. **drop test**: the free peg released at the mouth falls under gravity (MuJoCo C, stepped by
+   the caller's ``run_passive``, :func:`peghole_mjx.sim.free.run_passive`: the geometry layer
+   does not step physics); its tip must end within ``check.DROP_TOLERANCE_MM`` of the bottom;
 5. **hull intrusion**: how far the pieces stick out of the meshes
    (:func:`peghole_mjx.geometry.decompose.measure_deviation`: for the hole part, into the
    hole).
@@ -27,6 +28,7 @@ number; a failed check is a :class:`UserInputError` naming it.
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import dataclass, field
 
 import mujoco
@@ -176,14 +178,19 @@ def _sweep(m, d, q0, pairs, travel: float) -> tuple[float, int, float]:
     return least, steps, where
 
 
-def _drop(m, q_mouth, rest_z: float, tip_z0: float) -> float:
-    """Release the free peg at ``q_mouth``; return how far (mm) its tip ends above the rest."""
+#: ``run_passive(m, d, n_steps)``: steps ``d`` ``n_steps`` times in MuJoCo C
+#: (:func:`peghole_mjx.sim.free.run_passive`)
+RunPassive = Callable[[mujoco.MjModel, mujoco.MjData, int], object]
+
+
+def _drop(m, q_mouth, rest_z: float, tip_z0: float, run_passive: RunPassive) -> float:
+    """Release the free peg at ``q_mouth`` and let ``run_passive`` step it; return how far (mm)
+    its tip ends above the rest."""
     m.opt.disableflags |= mujoco.mjtDisableBit.mjDSBL_AUTORESET  # a diverging drop fails
     d = mujoco.MjData(m)
     d.qpos[:] = q_mouth
     n = round(check.drop_duration_s(q_mouth[2] - (rest_z - tip_z0)) / m.opt.timestep)
-    for _ in range(n):
-        mujoco.mj_step(m, d)
+    run_passive(m, d, n)
     if not np.isfinite(d.qpos).all():
         return math.nan
     return (float(d.qpos[2]) + tip_z0 - rest_z) / MM
@@ -198,11 +205,13 @@ def place_and_check(
     friction: float,
     peg_mass_kg: float,
     radial_clearance_mm: float,
+    run_passive: RunPassive,
     sim: SimOptions | None = None,
 ) -> TaskGeometry:
     """Frames, start pose and checks of a peg-hole (see the module docstring): meshes and
-    pieces in metres, assembled pose, +z extraction. ``sim``: the simulator options of the
-    env that will run the task (its contact settings; the caller passes the env config's)."""
+    pieces in metres, assembled pose, +z extraction. ``run_passive``: the drop test's physics
+    (:func:`peghole_mjx.sim.free.run_passive`). ``sim``: the simulator options of the env that
+    will run the task (its contact settings; the caller passes the env config's)."""
     sim = sim or SimOptions()
     tip = tip_point(peg_mesh, peg_hulls)
     top = max(float(h[:, 2].max()) for h in hole_hulls)
@@ -262,7 +271,7 @@ def place_and_check(
     least, steps, _ = _sweep(m, d, q, pairs, -start_z + SWEEP_BEYOND_M)
     q_mouth = q.copy()
     q_mouth[2] = -tip_z  # the tip at the mouth
-    drop = _drop(m, q_mouth, rest_z, tip_z)
+    drop = _drop(m, q_mouth, rest_z, tip_z, run_passive)
     if not math.isfinite(drop):
         raise UserInputError(
             "drop test: the free peg's simulation diverged (NaN) on its way into the hole"

@@ -31,6 +31,7 @@ from __future__ import annotations
 
 import copy
 import functools
+import math
 import os
 import threading
 import time
@@ -50,7 +51,7 @@ from peghole_mjx.control import ImpedanceController, ImpedanceParams
 from peghole_mjx.control.reference import impedance_torque, tool_centre
 from peghole_mjx.core.errors import UserInputError
 from peghole_mjx.core.rotations import rotvec_from_mat
-from peghole_mjx.sim.engines import FTReading, Readout, SceneIds, Sense
+from peghole_mjx.sim.engines import ContactForces, FTReading, Readout, SceneIds, Sense
 
 STATE_SPEC = mujoco.mjtState.mjSTATE_INTEGRATION
 
@@ -89,14 +90,17 @@ def available_threads() -> int:
 class _Pool:
     """One ``mujoco.batch.Batch`` of ``nsim`` worlds with the fields the engine binds."""
 
-    def __init__(self, model: mujoco.MjModel, nsim: int, nthread: int):
-        self.batch = b = mj_batch.Batch(model, nsim, nthread=nthread)
+    def __init__(self, model: mujoco.MjModel, nsim: int, nthread: int, persistent: bool = False):
+        #: ``persistent``: one MjData per world kept between calls, so that a world's contacts
+        #: and constraint forces of its last step can be read (:meth:`MujocoEngine.contacts`)
+        self.batch = b = mj_batch.Batch(model, nsim, nthread=nthread, persistent=persistent)
         self.state = b.state
         self.qpos, self.qvel, self.ctrl = b.bind("qpos"), b.bind("qvel"), b.bind("ctrl")
         self.xpos, self.xmat = b.bind("xpos"), b.bind("xmat")
         self.xanchor, self.xaxis = b.bind("xanchor"), b.bind("xaxis")
         self.site_xpos, self.site_xmat = b.bind("site_xpos"), b.bind("site_xmat")
         self.M, self.bias = b.bind("M"), b.bind("qfrc_bias")
+        self.passive = b.bind("qfrc_passive")
         self.sensordata = b.bind("sensordata")
         self.pair_friction = b.expand("pair_friction") if model.npair else None
         self.body_mass = self.body_inertia = self.xipos = None
@@ -217,6 +221,17 @@ class MujocoEngine:
             pool = self._pools[n] = _Pool(self.model, n, self.threads)
         return pool
 
+    def pool(self, qpos: np.ndarray) -> _Pool:
+        """A persistent pool of ``len(qpos)`` worlds at joint positions ``qpos`` (n, nq), the
+        mocap bodies at the model's defaults, zero velocity, forward done: the start of a
+        scripted client's worlds (the experiments: :meth:`law_step`, :meth:`contacts`)."""
+        qpos = np.atleast_2d(np.asarray(qpos, float))
+        p = _Pool(self.model, qpos.shape[0], self.threads, persistent=True)
+        p.batch.reset(stage=mujoco.mjtStage.mjSTAGE_NONE)
+        p.qpos[:] = qpos
+        self._run(p, p.batch.forward)
+        return p
+
     def full_inertia(self, M: np.ndarray) -> np.ndarray:
         """(n, nv, nv) joint-space inertia from the bound CSR ``M`` rows (n, nM)."""
         n = M.shape[0]
@@ -231,7 +246,8 @@ class MujocoEngine:
         jacp = _cross(axis, x_C[:, None, :] - p.xanchor[:, self._jnt])
         return np.concatenate([np.swapaxes(jacp, 1, 2), np.swapaxes(axis, 1, 2)], axis=1)
 
-    def _law(self, p: _Pool, pos, mat, vel, prm) -> np.ndarray:
+    def _law(self, p: _Pool, pos, mat, vel, prm) -> tuple[np.ndarray, np.ndarray]:
+        """The law's joint torques and clipped wrench of every world of ``p`` (n, nu), (n, 6)."""
         ctl, body = self.ctrl, self.ctrl.body_id
         R = p.xmat[:, body].reshape(-1, 3, 3)
         x_C, R = tool_centre(
@@ -244,13 +260,15 @@ class MujocoEngine:
         )
         J, M = self.centre_jacobian(p, x_C), self.full_inertia(p.M)
         bias, q, qvel = p.bias, p.qpos, p.qvel
+        if ctl.compensate_passive:  # as the JAX law: the passive joint forces cancelled
+            bias = bias - p.passive
         load = prm.get("load_error")
         J_g = None if load is None else self.centre_jacobian(p, p.xipos[:, body])[:, :3]
         if not self._all_dofs:
             d, qa = ctl.dadr, ctl.qadr
             J, M, bias, q, qvel = J[:, :, d], M[:, d][:, :, d], bias[:, d], q[:, qa], qvel[:, d]
             J_g = None if J_g is None else J_g[:, :, d]
-        tau, _ = impedance_torque(
+        return impedance_torque(
             J,
             M,
             bias,
@@ -272,7 +290,55 @@ class MujocoEngine:
             J_g,
             load,
         )
-        return tau
+
+    def _law_step(self, p: _Pool, pos, mat, vel, prm) -> tuple[np.ndarray, np.ndarray, float]:
+        """The law, then one ``Batch.step`` of every world of ``p``: (ok per world, the law's
+        wrench (n, 6), the step's seconds)."""
+        tau, wrench = self._law(p, pos, mat, vel, prm)
+        p.ctrl[:, self.ctrl.act] = np.where(np.isfinite(tau), tau, 0.0)
+        if self.ctrl_log is not None:
+            self.ctrl_log.append(np.array(p.ctrl))
+        t0 = time.perf_counter()
+        ok = self._run(p, p.batch.step)
+        return ok, wrench, time.perf_counter() - t0
+
+    def law_step(self, p: _Pool, pos, mat, vel, prm: dict) -> tuple[np.ndarray, np.ndarray]:
+        """One physics step of every world of a :meth:`pool` with the law applied before it
+        (targets per world: ``pos`` (n, 3), ``mat`` (n, 3, 3), ``vel`` (n, 3); ``prm``: the
+        law's parameters as arrays (n, ...) by ``ImpedanceParams`` field). A world that raises
+        in MuJoCo or ends non-finite keeps its last finite state and is returned not ok, as
+        the experiments' MJX path does. Returns (ok (n,), the law's wrench (n, 6))."""
+        before = np.array(p.state)
+        ok, wrench, _ = self._law_step(p, pos, mat, vel, prm)
+        ok &= np.isfinite(p.qpos).all(1) & np.isfinite(p.qvel).all(1)
+        if not ok.all():
+            bad = np.flatnonzero(~ok)
+            p.state[bad] = before[bad]
+            self._run(p, functools.partial(p.batch.forward, ids=bad))
+        return ok, wrench
+
+    def contacts(self, p: _Pool, world: int, data: mujoco.MjData) -> ContactForces:
+        """The contacts of world ``world``'s last step in a :meth:`pool` (``data``: an MjData of
+        the model to read it into), MuJoCo C's ``mj_contactForce`` per contact: a contact
+        carrying no normal force has every entry 0; ``tangential`` (N) and ``peg_force_z``
+        (the world-z force of the contact on the peg, N) are set."""
+        m, peg = self.model, self.ctrl.body_id
+        p.batch.get_data(world, data)
+        k = data.ncon
+        fn, nx, dist, ft, fz = (np.zeros(k) for _ in range(5))
+        own = np.zeros(k, bool)
+        f6 = np.zeros(6)
+        for i in range(k):
+            c = data.contact[i]
+            mujoco.mj_contactForce(m, data, i, f6)
+            if f6[0] <= 0:
+                continue
+            own[i] = m.geom_bodyid[c.geom1] == peg
+            frame = c.frame.reshape(3, 3)
+            on_peg = -(1.0 if own[i] else -1.0) * (frame.T @ f6[:3])  # world, on the peg
+            fn[i], nx[i], dist[i] = f6[0], frame[0, 0], c.dist
+            ft[i], fz[i] = math.hypot(f6[1], f6[2]), on_peg[2]
+        return ContactForces(fn, nx, own, dist, fn > 0, ft, fz)
 
     def _outputs(self, p: _Pool, ok: np.ndarray):
         i = self.ids
@@ -399,13 +465,9 @@ class MujocoEngine:
             ok = self._run(p, p.batch.forward)
             t_step = 0.0
             for k in range(n_sub):
-                tau = self._law(p, targets[:, k], mat, vel, prm)
-                p.ctrl[:, self.ctrl.act] = np.where(np.isfinite(tau), tau, 0.0)
-                if self.ctrl_log is not None:
-                    self.ctrl_log.append(np.array(p.ctrl))
-                t0 = time.perf_counter()
-                ok &= self._run(p, p.batch.step)
-                t_step += time.perf_counter() - t0
+                ok_k, _, dt_step = self._law_step(p, targets[:, k], mat, vel, prm)
+                ok &= ok_k
+                t_step += dt_step
                 rmat[:, k] = p.site_xmat[:, i.ft_site].reshape(-1, 3, 3)
                 rf[:, k] = p.sensordata[:, i.force_adr : i.force_adr + 3]
                 rt[:, k] = p.sensordata[:, i.torque_adr : i.torque_adr + 3]

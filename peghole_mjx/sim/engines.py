@@ -45,6 +45,7 @@ from peghole_mjx.control import ImpedanceController, ImpedanceParams, Target
 from peghole_mjx.control.kinematics import newton_ik
 from peghole_mjx.core._mjx import WARP_AVAILABLE, mjx, tree_path_to_attr_str, warp_types
 from peghole_mjx.core.errors import UserInputError
+from peghole_mjx.geometry import mjcf as scene
 
 #: the physics engines an env config may name (``engine``); ``mjx-warp`` on the command line is
 #: ``engine=mjx`` with ``impl=warp``
@@ -227,8 +228,7 @@ Sense = Callable[[FTReading], jax.Array]
 
 
 class SceneIds(NamedTuple):
-    """The ids an engine needs, resolved by name once (:class:`~peghole_mjx.envs.base.PegHoleBase`
-    does)."""
+    """The ids an engine needs, resolved by name once (:meth:`from_model`)."""
 
     peg_body: int
     flange_site: int
@@ -237,6 +237,38 @@ class SceneIds(NamedTuple):
     torque_adr: int
     hole_mocap: int
     qadr: np.ndarray
+
+    @classmethod
+    def from_model(cls, m: mujoco.MjModel, qadr) -> SceneIds:
+        """The ids of the iiwa peg-hole scene ``m`` (the names of
+        :mod:`peghole_mjx.geometry.mjcf`), ``qadr`` the arm's joint position addresses."""
+        return cls(
+            peg_body=m.body(scene.PEG_BODY).id,
+            flange_site=m.site(scene.FLANGE_SITE).id,
+            ft_site=m.site(scene.FT_SITE).id,
+            force_adr=int(m.sensor_adr[m.sensor(scene.FT_FORCE_SENSOR).id]),
+            torque_adr=int(m.sensor_adr[m.sensor(scene.FT_TORQUE_SENSOR).id]),
+            hole_mocap=int(m.body_mocapid[m.body(scene.HOLE_BODY).id]),
+            qadr=np.asarray(qadr),
+        )
+
+
+class ContactForces(NamedTuple):
+    """A physics step's contacts, one entry each (the step's contact rows; padded entries carry
+    no force): the normal force (N, 0 for a contact that carries none), the x component of the
+    contact normal (geom1 to geom2), whether geom1 is on the peg, the signed distance (m), and
+    whether the contact is active (a constraint row with a finite distance: MJX; a positive
+    normal force: MuJoCo C)."""
+
+    normal_force: jax.Array
+    normal_x: jax.Array
+    peg_is_geom1: jax.Array
+    dist: jax.Array
+    active: jax.Array
+    #: MuJoCo C only (None on MJX): the tangential force's magnitude, N, and the world-z force
+    #: of the contact on the peg, N
+    tangential: np.ndarray | None = None
+    peg_force_z: np.ndarray | None = None
 
 
 def contact_overflow(data) -> jax.Array:
@@ -398,11 +430,39 @@ class MjxEngine:
 
         def substep(d, pos):
             target = Target(pos=pos, mat=target_mat, vel=target_vel)
-            d, _ = self.ctrl.apply(law_m, d, target, params)
-            d = self._step(m, d)
+            d, _ = self.law_step(d, target, params, m, law_m)
             return d, sense(self.ft_reading(d))
 
         return jax.lax.scan(substep, data, targets)
+
+    def law_step(self, data, target: Target, params: ImpedanceParams, m=None, law_m=None):
+        """One physics step with the impedance law applied before it, tracking ``target``:
+        ``(data, the law's ImpedanceOutput)``. ``m``: the model to step with (None: the
+        current :attr:`model`); ``law_m``: the model the law reads (None: :meth:`law_model`
+        of ``m``). The env's substeps and the experiments' scripted pulls both step here."""
+        m = self.model if m is None else m
+        law_m = self.law_model(m) if law_m is None else law_m
+        data, out = self.ctrl.apply(law_m, data, target, params)
+        return self._step(m, data), out
+
+    def start_data(self, m: mujoco.MjModel, d: mujoco.MjData):
+        """The ``mjx.Data`` of MuJoCo state ``d`` (MJX-JAX), in the dtypes a step returns (with
+        ``jax_enable_x64`` a step returns some int32 fields as int64)."""
+        if self.impl != "jax":
+            raise UserInputError("start_data is for MJX-JAX (impl 'jax')")
+        dx0 = mjx.put_data(m, d, impl="jax")
+        out = jax.eval_shape(mjx.step, self.model, dx0)
+        return jax.tree.map(lambda a, o: a.astype(o.dtype), dx0, out)
+
+    def contact_forces(self, data, peg_geom: jax.Array) -> ContactForces:
+        """The contacts of the last physics step (:class:`ContactForces`); ``peg_geom``: a
+        bool per geom, true on the peg's geoms."""
+        con = data._impl.contact
+        addr = con.efc_address
+        fn = jnp.where(addr >= 0, data._impl.efc_force[jnp.maximum(addr, 0)], 0.0)
+        nx = con.frame[:, 0, 0] if con.frame.ndim == 3 else con.frame[:, 0]
+        active = (addr >= 0) & jnp.isfinite(con.dist)
+        return ContactForces(fn, nx, peg_geom[con.geom1], con.dist, active)
 
     def law_model(self, m):
         """The model the impedance law reads ``m`` as. MuJoCo Warp keeps the mass matrix in
