@@ -35,7 +35,7 @@ from tqdm import tqdm
 
 from benchmarks.common import STUDIES_RESULTS, out_file, write_rows
 from benchmarks.studies import pull_speed as ps
-from peghole_mjx.files.provenance import provenance
+from peghole_mjx.files.provenance import commit, provenance
 
 #: the plans whose committed rows are rerun (their results file: ``pull_speed_<plan>.json``)
 PLANS = ("rect", "dual", "dual_tilt", "dual_tilt_mu001")
@@ -91,7 +91,7 @@ def main(argv: list[str] | None = None) -> int:
     rows = []
     jobs = [(plan, j) for plan in args.plans for j in todo(plan, args.repeats)]
     old = {plan: committed(plan) for plan in args.plans}
-    t0 = time.perf_counter()
+    t0, source = time.perf_counter(), commit()
     for plan, job in tqdm(jobs, desc="worlds", unit="world"):
         new = ps.world_row(job)
         ref = old[plan][job[0]]
@@ -139,6 +139,7 @@ def main(argv: list[str] | None = None) -> int:
         "runtime_s": time.perf_counter() - t0,
         "command": "python -m benchmarks.studies.sim_reproduction " + " ".join(sys.argv[1:]),
         **provenance(),
+        "commit": source,
         "rows": rows,
     }
     out = Path(args.out)
