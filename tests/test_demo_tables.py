@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import json
 import math
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -164,18 +165,33 @@ def test_report_shows_both_cells_with_their_figures_table_and_regimes(tmp_path):
     assert "R1 is reversed" in bullets[0] and "R1 holds" in bullets[1]
 
 
-def test_cpu_demo_trains_the_time_to_success_task_and_stops_at_its_threshold():
-    """On the cpu profile the demo trains the committed time-to-success run's task (compliance
-    strategy off, the action's full speed limit) and stops at 0.95 eval success; the other
-    profiles keep RL + compliance strategy at their own speed limit."""
+def test_the_demo_trains_trainings_default_reward_and_learner_for_the_whole_budget(monkeypatch):
+    """The demo trains training's defaults (RL + compliance strategy, the outcome reward,
+    residual actions, the profile's critic burn-in) on every profile, for the profile's whole
+    budget (no early stop: its report states the final policy)."""
+    from peghole_mjx.training import config as tc
+
     engine = {"env.engine": "mujoco"}
     cpu = demo._train_config("cpu", engine)
-    assert cpu.env_overrides["compliance_strategy"] is False
-    assert cpu.env_overrides["action.max_speed_m_s"] == demo.LIMITS.max_speed_m_s
-    assert cpu.num_timesteps == 100_000 and demo.training_task(cpu).startswith("RL, ")
+    for key, value in tc.TRAINING_ENV_DEFAULTS.items():
+        assert cpu.env_overrides[key] == value, key
+    assert cpu.env_overrides["reward_config.kind"] == "outcome"
+    assert cpu.env_overrides["action.residual"] is True
+    assert cpu.actor_delay_updates == 5000 and cpu.num_timesteps == 100_000
+    assert cpu.discounting == tc.reward_discount("RectExtract", cpu.env_overrides)
+    assert demo.training_task(cpu) == ("RL + compliance strategy, outcome reward, residual actions")
     full = demo._train_config("full", {"env.engine": "mjx"})
-    assert full.env_overrides["compliance_strategy"] is True
     assert full.env_overrides["action.max_speed_m_s"] == 0.025
-    assert demo.training_task(full) == "RL + compliance strategy, thesis reward"
-    assert cpu.env_overrides["reward_config.kind"] == "thesis"  # training's default reward
-    assert demo.DEMO_CPU_STOP_AT_SUCCESS == 0.95
+    assert demo.training_task(full) == demo.training_task(cpu)
+    seen = {}
+
+    class Run:
+        def __init__(self, cfg, out, **kw):
+            seen.update(kw)
+
+        def run(self):
+            return {}
+
+    monkeypatch.setattr(demo.run_mod, "TrainingRun", Run)
+    demo._train(Path("unused"), cpu)
+    assert "stop_at_success" not in seen

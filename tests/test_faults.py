@@ -522,7 +522,11 @@ def test_train_config_owns_every_default_and_the_cli_agrees_with_python(tmp_path
 
     auto = {"env.engine": default_engine()}
 
-    assert TRAINING_ENV_DEFAULTS["compliance_strategy"] is True
+    assert TRAINING_ENV_DEFAULTS == {
+        "compliance_strategy": True,
+        "reward_config.kind": "outcome",
+        "action.residual": True,
+    }
     assert default("learning_rate") == 3e-4
     assert "compliance_strategy" not in TrainConfig.__dataclass_fields__  # one home: the env
     for env in ("RectExtract", "DualExtract"):

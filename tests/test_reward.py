@@ -173,18 +173,21 @@ def test_the_thesis_reward_takes_any_discount_and_an_unknown_kind_is_refused():
         envs.load("RectExtract", config_overrides={"reward_config.kind": "best"})
 
 
-def test_training_pays_eq_4_4_by_default_and_the_outcome_reward_at_its_discount():
+def test_training_pays_the_outcome_reward_by_default_at_its_discount_and_eq_4_4_on_request():
+    """Training's default reward is the outcome reward (2026-12-06, TRAINING_ENV_DEFAULTS), at
+    its own discount; the thesis's eq (4.4), which the C4 and R3 studies set themselves, at
+    the thesis's 0.99; the env built outside training keeps eq (4.4)."""
     from peghole_mjx.core.errors import UserInputError
     from peghole_mjx.training.config import load_train_config
 
-    thesis = load_train_config("RectExtract", "cpu")
-    assert thesis.env_overrides["reward_config.kind"] == "thesis"
-    assert thesis.discounting == 0.99
-    outcome = {"env.reward_config.kind": "outcome"}
-    cfg = load_train_config("RectExtract", "cpu", outcome)
+    cfg = load_train_config("RectExtract", "cpu")
+    assert cfg.env_overrides["reward_config.kind"] == "outcome"
     assert cfg.discounting == envs.get_default_config("RectExtract").reward_config.discount
+    thesis = load_train_config("RectExtract", "cpu", {"env.reward_config.kind": "thesis"})
+    assert thesis.discounting == 0.99
+    assert envs.get_default_config("RectExtract").reward_config.kind == "thesis"
     with pytest.raises(UserInputError, match="differs from the outcome reward's discount"):
-        load_train_config("RectExtract", "cpu", {**outcome, "discounting": 0.99})
+        load_train_config("RectExtract", "cpu", {"discounting": 0.99})
 
 
 @pytest.mark.slow

@@ -329,9 +329,12 @@ def main(argv: list[str] | None = None) -> int:
         # train the published policy at 25 mm/s)
         "env.action.max_speed_m_s": LIMITS.max_speed_m_s,
         "env.engine": args.engine,
-        # the committed time-to-success records trained the thesis's eq (4.4); kept so that
-        # the plain command reproduces them whatever training's default reward is
+        # the committed time-to-success records trained the thesis's eq (4.4) with plain
+        # actions and no critic burn-in; kept so that the plain command reproduces them
+        # whatever training's defaults are
         "env.reward_config.kind": "thesis",
+        "env.action.residual": False,
+        "actor_delay_updates": 0,
     }
     overrides.update(parse_overrides(args.sets))
     cfg = load_train_config(args.env, profile, overrides, compliance_strategy=False)

@@ -13,13 +13,16 @@ Reads two finished (or stopped) training runs of the same env, one trained with
 Usage::
 
     peghole train --env RectExtract --compliance-strategy on  --profile cpu \
-        --set env.reward_config.kind=thesis --out runs/rect_cs
+        --set env.reward_config.kind=thesis --set env.action.residual=false \
+        --set actor_delay_updates=0 --out runs/rect_cs
     peghole train --env RectExtract --compliance-strategy off --profile cpu \
-        --set env.reward_config.kind=thesis --out runs/rect_nocs
+        --set env.reward_config.kind=thesis --set env.action.residual=false \
+        --set actor_delay_updates=0 --out runs/rect_nocs
 
-The C4 claims are about the thesis's reward, eq (4.4): its runs set
-``env.reward_config.kind=thesis`` (stated whatever training's default is; the committed C4
-runs trained eq (4.4), docs/research/rl_vs_rlcs.md).
+The C4 claims are about the thesis's reward, eq (4.4), and its plain actions: its runs set
+``env.reward_config.kind=thesis``, ``env.action.residual=false`` and no critic burn-in (stated
+whatever training's defaults are; the committed C4 runs trained eq (4.4) with plain actions,
+docs/research/rl_vs_rlcs.md).
     python -m benchmarks.evals.rl_vs_rlcs --cs runs/rect_cs --no-cs runs/rect_nocs
 
 With multi-seed runs (``peghole train ... --seeds N``, ``history.csv`` + ``seeds.json``) the

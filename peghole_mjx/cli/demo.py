@@ -22,12 +22,11 @@ Steps (each also a command of its own):
    quasi-static oracle predicts the thesis's R1 reversed) and the sweep's cell nearest R1
    (K_theta 30 N m/rad); the report puts the simulated reductions beside the oracle's for the
    same worlds and the thesis's, and names each cell's regime;
-3. ``peghole train --env RectExtract --profile cpu`` on the ``mujoco`` engine (MuJoCo C):
-   RL with the compliance strategy off at the action's full speed limit (the task of the
-   committed time-to-success run), up to 100k env steps, stopping at the first evaluation at
-   >= 0.95 success (``demo.DEMO_CPU_STOP_AT_SUCCESS``, decided 2026-12-02); ``--profile full``
-   on MJX on a GPU trains RL + compliance strategy to the GPU targets of
-   docs/research/results.md;
+3. ``peghole train --env RectExtract --profile cpu`` on the ``mujoco`` engine (MuJoCo C) with
+   training's defaults (RL + compliance strategy, the outcome reward, residual actions, the
+   profile's critic burn-in: the learner of the residual protocol and of the published
+   policies, decided 2026-12-06), the profile's whole 100k env steps, then the FINAL policy
+   evaluated; ``--profile full`` on a GPU trains the same task at the GPU sizes;
 4. ``peghole evaluate rect`` (the committed pretrained policy vs the scripted baseline);
 5. ``report.md`` linking the figures.
 
