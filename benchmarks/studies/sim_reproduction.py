@@ -88,10 +88,11 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--repeats", type=int, default=REPEATS)
     ap.add_argument("--out", type=out_file, default=STUDIES_RESULTS / "sim_reproduction.json")
     args = ap.parse_args(argv)
+    source = commit()  # before any work: the tree the run's code came from
     rows = []
     jobs = [(plan, j) for plan in args.plans for j in todo(plan, args.repeats)]
     old = {plan: committed(plan) for plan in args.plans}
-    t0, source = time.perf_counter(), commit()
+    t0 = time.perf_counter()
     for plan, job in tqdm(jobs, desc="worlds", unit="world"):
         new = ps.world_row(job)
         ref = old[plan][job[0]]
@@ -117,6 +118,7 @@ def main(argv: list[str] | None = None) -> int:
         "max_abs_d_two_point_windows": max(
             (abs(r["d_two_point_windows"]) for r in rows), default=None
         ),
+        "outside_the_rule": [f"{r['plan']} {r['key']}" for r in rows if not r["reproduced"]],
         "wall_s_new": sum(r["wall_s"] for r in rows),
         "wall_s_committed": sum(r["committed_wall_s"] for r in rows),
     }
