@@ -174,6 +174,7 @@ RECORDED: list[dict] = [
             (3237, "2026-12-05"),
             (2610, "2026-12-05"),
             (3425, "2026-12-05"),
+            (705, "2026-12-06"),
         )
     ],
     _warm_local_suite(
@@ -245,6 +246,39 @@ RECORDED: list[dict] = [
         },
         "commit": "unknown: not recorded by the run; its files were committed in 6ef1e0d",
         "outcome": "peak memory 2.2 GB; eval success 1.00 at 70.4k env steps",
+        "source": "benchmarks/results/evals/demo_cpu-2core/ until 2026-12-06 (its git history: "
+        "README.md, run.json, summary.json)",
+    },
+    {
+        "kind": "demo",
+        "label": "free 2-core CPU (157 % CPU to the demo)",
+        "wall_s": 432,
+        "device": "cpu (2 cores, x86_64)",
+        "versions": {
+            "python": "3.11.7",
+            "peghole_mjx": "0.1.0",
+            "mujoco": "4.0.1",
+            "mujoco-mjx": "3.17.0",
+            "jax": "0.10.2",
+            "jaxlib": "0.10.2",
+            "brax": "0.14.2",
+            "numpy": "2.4.6",
+            "coacd": "1.0.14",
+            "trimesh": "5.2.0",
+        },
+        "date": "2026-12-06T05:20Z",
+        "command": "/usr/bin/time -v peghole demo --out /tmp/demo_run",
+        "config": {
+            "profile": "auto -> cpu",
+            "engine": "mujoco",
+            "stop": "none: the profile's whole 100k env steps, the final policy evaluated",
+            "reward": "outcome, residual actions, RL + compliance strategy, critic burn-in "
+            "5000 (training's defaults from 2026-12-06)",
+            "compliance_cells": ["default", "r1_regime"],
+        },
+        "commit": "a3ee3aa98b3699c35a6f622f26f7e245f1e69f0f",
+        "outcome": "peak memory 1.5 GB; final policy 32 of 32 demo episodes, mean F_z 3.66 N "
+        "against the baseline's 8.18 N",
         "source": "benchmarks/results/evals/demo_cpu-2core/README.md (its run.json, "
         "summary.json: device, versions, date)",
     },
