@@ -495,7 +495,9 @@ class Extraction:
         self.sim: MjxEngine | MujocoEngine
         if self.engine == "mjx":
             self._peg_geom = jnp.asarray(m.geom_bodyid == m.body("peg").id)
-            self.sim = MjxEngine(mjx.put_model(m, impl="jax"), self.ctl, ids, impl="jax")
+            mx = mjx.put_model(m, impl="jax")
+            # the plain mjx.step in the chunk's graph, as the committed records were computed
+            self.sim = MjxEngine(mx, self.ctl, ids, impl="jax", jit_calls=False)
             self.dx0 = self.sim.start_data(m, d)
             self._chunk = jax.jit(self._chunk_fn)
             self._compiled = False  # the first chunk of the first run compiles _chunk

@@ -301,6 +301,7 @@ class MjxEngine:
         naconmax: int = 64,
         njmax: int = 256,
         mj_model: mujoco.MjModel | None = None,
+        jit_calls: bool = True,
     ):
         """``model``: the ``mjx.Model``, or a function returning the model to step with now.
 
@@ -308,7 +309,11 @@ class MjxEngine:
         model at every trace of a reset or step, so a wrapper that swaps ``_mjx_model`` for a
         per-world model under ``vmap`` (MuJoCo Playground's domain randomisation) randomises
         the physics. ``mj_model``: the compiled model, needed by MuJoCo Warp's ``make_data``
-        (it refuses an ``mjx.Model``)."""
+        (it refuses an ``mjx.Model``). ``jit_calls`` (MJX-JAX): step and forward through the
+        module's jitted ``mjx.step`` / ``mjx.forward`` (the envs: their traces are reused);
+        False: the plain calls, inlined in the caller's graph (the compliance experiment, whose
+        committed records were computed so: XLA fuses the two differently, and a float32 pull
+        of three rect-2 worlds then differs by up to 1.2 N in a 20 ms F_z sample, 2026-12-06)."""
         if impl == "warp" and mj_model is None:
             raise UserInputError("impl='warp' needs the compiled mujoco.MjModel (mj_model)")
         self._model = model
@@ -317,7 +322,7 @@ class MjxEngine:
         self.ids = ids
         self.impl = impl
         self._buffers = {"naconmax": naconmax, "njmax": njmax} if impl == "warp" else {}
-        jitted = impl == "jax"  # MuJoCo Warp: the plain calls (module note at _mjx_step)
+        jitted = impl == "jax" and jit_calls  # Warp: the plain calls (note at _mjx_step)
         self._step = _mjx_step if jitted else mjx.step
         self._forward = _mjx_forward if jitted else mjx.forward
 
