@@ -251,8 +251,8 @@ RECORDED: list[dict] = [
     },
     {
         "kind": "demo",
-        "label": "free 2-core CPU (157 % CPU to the demo)",
-        "wall_s": 432,
+        "label": "free 2-core CPU (158 % CPU to the demo)",
+        "wall_s": 410,
         "device": "cpu (2 cores, x86_64)",
         "versions": {
             "python": "3.11.7",
@@ -266,7 +266,7 @@ RECORDED: list[dict] = [
             "coacd": "1.0.14",
             "trimesh": "5.2.0",
         },
-        "date": "2026-12-06T05:20Z",
+        "date": "2026-12-06T06:07Z",
         "command": "/usr/bin/time -v peghole demo --out /tmp/demo_run",
         "config": {
             "profile": "auto -> cpu",
@@ -276,7 +276,7 @@ RECORDED: list[dict] = [
             "5000 (training's defaults from 2026-12-06)",
             "compliance_cells": ["default", "r1_regime"],
         },
-        "commit": "a3ee3aa98b3699c35a6f622f26f7e245f1e69f0f",
+        "commit": "f88e7c4f953f3478fa89531cd159eb18005940a7",
         "outcome": "peak memory 1.5 GB; final policy 32 of 32 demo episodes, mean F_z 3.66 N "
         "against the baseline's 8.18 N",
         "source": "benchmarks/results/evals/demo_cpu-2core/README.md (its run.json, "
