@@ -172,7 +172,7 @@ def test_the_pull_speed_rows_on_the_mjx_path_match_the_trace_rows(tmp_path, monk
     assert json.loads(parts.read_text())["key"] == key == todo[0][0]
     row = rows[key]
     assert row["engine"] == ps.MJX_ENGINE and row["mu_eff"] is None
-    trace_row = ps._job(todo[0])
+    trace_row = ps.world_row(todo[0])
     assert row["peak_fz_late_N"] == pytest.approx(trace_row["peak_fz_late_N"], rel=0.05)
     assert row["both_walls_frac_in_two_point"] == pytest.approx(
         trace_row["both_walls_frac_in_two_point"], abs=0.05

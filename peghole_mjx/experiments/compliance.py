@@ -31,14 +31,11 @@ engines' scripted client: what it owns exists once here: the compiled scene (wit
 (:func:`rest_pose_errors`, :func:`command`), the wall-side contact rule
 (:func:`contact_sides`), the loaded sides and wall switches (:func:`loaded_sides`,
 :func:`wall_switch`), the per-step record (:func:`record_row`, :func:`update_stats`) and its
-20 ms aggregation (:func:`aggregate_samples`). Until 2026-12-06 the ``mujoco`` engine was a
-per-world ``MjData`` loop of its own (``mj_jac``, MuJoCo's auto-reset on); the committed results
-it wrote reproduce on the sim layer's engine (``benchmarks/studies/sim_reproduction.py``, rule
-fixed before the run, 2026-12-06: 224 of 228 committed pull-speed worlds at 20 mm/s within it;
-the other four, soft or tilted cells where the engines' different float order grows, differ by
-up to 0.15 N in late peak F_z and 1.9 um in penetration; the file holds every world's figures).
-The ``mjx`` path does the same float operations as before (the law and ``mjx.step``, now
-called through the engine).
+20 ms aggregation (:func:`aggregate_samples`). The records the experiment's earlier per-world
+``MjData`` loop wrote reproduce on the batch within a rule fixed before the check, four of 228
+worlds outside it (``benchmarks/studies/sim_reproduction.py``, docs/guide/experiments.md,
+"Engines"); the ``mjx`` path does the same float operations as before (the law and the plain
+``mjx.step``, called through the engine).
 
 MuJoCo C's multi-point CCD (on by default in MuJoCo 4) is off in every compiled scene
 (``geometry.mjcf._set_options``): MJX collides convex meshes with its own routine, and with
