@@ -1,5 +1,5 @@
 """The sim layer's scripted clients (the compliance experiment): the MuJoCo C engine's per-step
-API (``MujocoEngine.pool``, ``law_step``, ``contacts``) against MuJoCo's own calls, its NaN
+API (``MujocoEngine.pool``, ``law_step``, ``contact_forces``) against MuJoCo's own calls, its NaN
 worlds, the law's passive-force option on both array libraries, and a committed result of the
 experiment's earlier per-world loop reproduced on the engine."""
 
@@ -16,6 +16,7 @@ import pytest
 from benchmarks.studies import pull_speed as ps
 from benchmarks.studies import sim_reproduction as sr
 from peghole_mjx.control import ImpedanceController, Target, make_params
+from peghole_mjx.core._mjx import mjx
 from peghole_mjx.experiments import compliance as cx
 from peghole_mjx.sim.engine_mujoco import MujocoEngine
 from peghole_mjx.sim.engines import SceneIds
@@ -60,7 +61,7 @@ def test_contacts_are_mujocos_contact_forces(ex):
             mujoco.mj_step(m, d)
     finally:
         sim.ctrl_log = None
-    c = sim.contacts(p, 0, mujoco.MjData(m))
+    c = sim.contact_forces(p, 0, mujoco.MjData(m))
     assert d.ncon == len(c.normal_force) and (c.normal_force > 0).any()
     f6 = np.zeros(6)
     for i in range(d.ncon):
@@ -104,8 +105,6 @@ def test_the_c_law_cancels_the_passive_forces_as_the_jax_law(ex):
     d = mujoco.MjData(m)
     d.qpos[:], d.qvel[:] = p.qpos[0], p.qvel[0]
     mujoco.mj_forward(m, d)
-    from peghole_mjx.core._mjx import mjx
-
     mx = mjx.put_model(m, impl="jax")
     dx = mjx.put_data(m, d, impl="jax")
     params = make_params(float(tab["L_C"][0]), ex.q0, stiffness=prm["stiffness"][0])
@@ -159,6 +158,4 @@ def test_the_experiments_mjx_path_steps_through_the_engine(monkeypatch):
     assert calls == [1]
     # the plain mjx.step inlined in the chunk's graph, as the committed records were computed
     # (the jitted one is fused differently: up to 1.2 N apart in a float32 F_z sample)
-    from peghole_mjx.core._mjx import mjx
-
     assert e.sim._step is mjx.step

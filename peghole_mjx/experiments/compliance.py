@@ -24,7 +24,7 @@ worlds of a (preset, friction) through ``jax.vmap`` inside one jitted, time-chun
 a sweep batches every cell of a preset into the same compiled call; ``mujoco`` runs every world
 of the table in one ``mujoco.batch`` (float64) of
 :class:`peghole_mjx.sim.engine_mujoco.MujocoEngine` (:meth:`~MujocoEngine.law_step`, its
-contacts per step :meth:`~MujocoEngine.contacts`), with the NumPy twin of the law, and also
+contacts per step :meth:`~MujocoEngine.contact_forces`), with the NumPy twin of the law, and also
 gives a per-step trace (:meth:`Extraction.trace`, :data:`TRACE_COLUMNS`). The experiment is the
 engines' scripted client: what it owns exists once here: the compiled scene (with optional
 ``mjOption`` fields), the keyframe start, the F/T tare, the step count, the command schedule
@@ -664,7 +664,7 @@ class Extraction:
                 alive &= step_ok
                 ok[:, t] = alive
                 for w in range(nw):
-                    c = sim.contacts(p, w, data)
+                    c = sim.contact_forces(p, w, data)
                     contacts[w].append((c.normal_force, c.normal_x, c.peg_is_geom1, c.dist))
                     sums[w, t] = (
                         _sum_in_order(c.tangential),

@@ -90,9 +90,18 @@ def available_threads() -> int:
 class _Pool:
     """One ``mujoco.batch.Batch`` of ``nsim`` worlds with the fields the engine binds."""
 
-    def __init__(self, model: mujoco.MjModel, nsim: int, nthread: int, persistent: bool = False):
+    def __init__(
+        self,
+        model: mujoco.MjModel,
+        nsim: int,
+        nthread: int,
+        persistent: bool = False,
+        passive: bool = False,
+    ):
         #: ``persistent``: one MjData per world kept between calls, so that a world's contacts
-        #: and constraint forces of its last step can be read (:meth:`MujocoEngine.contacts`)
+        #: and constraint forces of its last step can be read
+        #: (:meth:`MujocoEngine.contact_forces`); ``passive``: bind ``qfrc_passive`` (an
+        #: output field, copied out after every call: only for a law that cancels it)
         self.batch = b = mj_batch.Batch(model, nsim, nthread=nthread, persistent=persistent)
         self.state = b.state
         self.qpos, self.qvel, self.ctrl = b.bind("qpos"), b.bind("qvel"), b.bind("ctrl")
@@ -100,7 +109,7 @@ class _Pool:
         self.xanchor, self.xaxis = b.bind("xanchor"), b.bind("xaxis")
         self.site_xpos, self.site_xmat = b.bind("site_xpos"), b.bind("site_xmat")
         self.M, self.bias = b.bind("M"), b.bind("qfrc_bias")
-        self.passive = b.bind("qfrc_passive")
+        self.passive = b.bind("qfrc_passive") if passive else None
         self.sensordata = b.bind("sensordata")
         self.pair_friction = b.expand("pair_friction") if model.npair else None
         self.body_mass = self.body_inertia = self.xipos = None
@@ -218,15 +227,18 @@ class MujocoEngine:
     def _pool(self, n: int) -> _Pool:
         pool = self._pools.get(n)
         if pool is None:
-            pool = self._pools[n] = _Pool(self.model, n, self.threads)
+            pool = self._pools[n] = _Pool(
+                self.model, n, self.threads, passive=self.ctrl.compensate_passive
+            )
         return pool
 
     def pool(self, qpos: np.ndarray) -> _Pool:
         """A persistent pool of ``len(qpos)`` worlds at joint positions ``qpos`` (n, nq), the
         mocap bodies at the model's defaults, zero velocity, forward done: the start of a
-        scripted client's worlds (the experiments: :meth:`law_step`, :meth:`contacts`)."""
+        scripted client's worlds (the experiments: :meth:`law_step`, :meth:`contact_forces`)."""
         qpos = np.atleast_2d(np.asarray(qpos, float))
-        p = _Pool(self.model, qpos.shape[0], self.threads, persistent=True)
+        n = qpos.shape[0]
+        p = _Pool(self.model, n, self.threads, True, passive=self.ctrl.compensate_passive)
         p.batch.reset(stage=mujoco.mjtStage.mjSTAGE_NONE)
         p.qpos[:] = qpos
         self._run(p, p.batch.forward)
@@ -317,7 +329,7 @@ class MujocoEngine:
             self._run(p, functools.partial(p.batch.forward, ids=bad))
         return ok, wrench
 
-    def contacts(self, p: _Pool, world: int, data: mujoco.MjData) -> ContactForces:
+    def contact_forces(self, p: _Pool, world: int, data: mujoco.MjData) -> ContactForces:
         """The contacts of world ``world``'s last step in a :meth:`pool` (``data``: an MjData of
         the model to read it into), MuJoCo C's ``mj_contactForce`` per contact: a contact
         carrying no normal force has every entry 0; ``tangential`` (N) and ``peg_force_z``
