@@ -3,15 +3,16 @@
 ``reward_config.kind`` picks one (the env config's ``reward_config`` group holds the weights
 of both; :data:`REWARD_WEIGHTS` and :data:`OUTCOME_WEIGHTS` are their one source):
 
-* ``thesis`` (training's default): eq (4.4) with the Table 4.1 weights, exactly as the thesis
-  wrote it. Progress is
+* ``thesis`` (the env config's default): eq (4.4) with the Table 4.1 weights, exactly as the
+  thesis wrote it. Progress is
   paid every step and the outcome only +-1 at the end, several hundred steps later: at a
   discount of 0.99 a success 300 steps away is worth 0.05 of its face value, so the return
   cannot tell an extraction from a peg left 1 mm in. The reproduction studies (R3-R5, C4.1 /
   C4.2) keep it, stated in their files. A time-out is a terminal failure (the thesis's rule).
-* ``outcome`` (opt-in: it did not learn RectExtract within the ``cpu`` budget, the learner
-  stalling in the hole rather than risking a jam; docs/research/learning.md): a reward whose
-  optimum is a clean extraction. Per step a time cost ``time_cost`` plus a contact cost
+* ``outcome`` (training's default with residual actions,
+  :data:`peghole_mjx.training.config.TRAINING_ENV_DEFAULTS`; on plain actions it did not learn
+  RectExtract within the ``cpu`` budget, docs/research/learning.md): a reward whose optimum is
+  a clean extraction. Per step a time cost ``time_cost`` plus a contact cost
   ``time_cost * w_contact * min(|f| / force_scale_N, 1)`` (|f| the contact force, F_z and
   F_xy together); a progress term that is potential-based shaping (Ng, Harada and Russell
   1999), ``gamma Phi(s') - Phi(s)`` with ``Phi = -w_progress * (distance left to success) /
