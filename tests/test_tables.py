@@ -3,13 +3,14 @@ its markers wherever they are, and ``--check`` failing on a stale table, a table
 marker, a marker with no generator and a marker that appears twice."""
 
 import json
+import math
 import shutil
 from pathlib import Path
 
 import pytest
 
 from benchmarks import common, tables
-from benchmarks.evals import brief
+from benchmarks.evals import brief, learning
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -188,21 +189,55 @@ def test_settings_diff_names_every_setting_that_differs():
     assert common.fmt_settings_diff(common.settings_diff(a, a)) == "nothing"
 
 
-def test_the_time_rows_name_what_our_two_training_runs_differ_in():
-    """Issue 52: 159 s (mjx) vs 104 s (mujoco) also changed the learning rate and the
-    evaluation interval; the row says so, from the two files' configs."""
-    res = common.BASELINES_RESULTS
-    a, b = (
-        json.loads((res / f"train_rect{e}_cpu-2core.json").read_text()) for e in ("", "_mujoco")
+def test_clock_to_95_counts_a_seed_that_never_reached_it_as_late():
+    """A median over the seeds that reached 95 % alone would flatter a stack."""
+    late = [{"clock_to_95_s": v} for v in (1.0, 2.0, None, None, None)]
+    med, q1, q3 = learning.censored_median_iqr(late, "clock_to_95_s")
+    assert math.isinf(med) and q1 == 2.0 and math.isinf(q3)
+    mixed = [{"clock_to_95_s": v} for v in (5.0, 1.0, None, 3.0, 2.0)]
+    assert learning.censored_median_iqr(mixed, "clock_to_95_s") == (3.0, 2.0, 5.0)
+
+
+def _stack_entry(task, engine, reward, residual, budget, updates, clocks, untrained=0):
+    return {
+        "task": task,
+        "seeds": list(range(len(clocks))),
+        "per_seed": [{"clock_to_95_s": c} for c in clocks],
+        "reached_95": sum(c is not None for c in clocks),
+        "at_95_untrained": untrained,
+        "config": {"num_timesteps": budget, "env_overrides": {"action.residual": residual}},
+        "engine": engine,
+        "reward_kind": reward,
+        "updates_per_env_step": updates,
+        "final_success_iqm": 0.9,
+        "final_success_ci95": [0.8, 1.0],
+        "share_at_95": 0.4,
+    }
+
+
+def test_the_readme_learning_rows_come_from_the_stacks_files_and_name_what_differs(
+    tmp_path, monkeypatch
+):
+    files = {s: tmp_path / f"learning_{s}.json" for s in ("ours", "seed", "sb3")}
+    monkeypatch.setattr(brief, "STACK_FILES", files)
+    rows = brief._time_rows()
+    assert all("| pending |" in r for r in rows)  # no stack file: nothing compared
+    ours = _stack_entry("RectExtract", "mujoco", "outcome", True, 100_000, 0.5, [1.0] * 5, 5)
+    seed = _stack_entry("RectExtract", "pybullet", "thesis", None, 32_000, 0.02,
+                        [10.0, 20.0, 30.0, None, 40.0])  # fmt: skip
+    files["ours"].write_text(json.dumps({"tasks": [ours]}))
+    files["seed"].write_text(json.dumps({"tasks": [seed]}))
+    time_row, hard_row = brief._time_rows()
+    assert "ours 1 s (5 of 5 reached, 5 at 95 % untrained)" in time_row
+    assert "seed stack 30 s (4 of 5 reached" in time_row
+    assert "ours / seed stack 0.033" in time_row
+    assert "seed stack pybullet, thesis, plain actions, 32k env steps, 0.02 updates/env step" in (
+        time_row
     )
-    text = brief.engines_differ(a, b)
-    for part in (
-        "learning_rate 0.0003 vs 0.0001",
-        "eval_every 3200 vs 1600",
-        "engine mjx vs mujoco",
-    ):
-        assert part in text, text
-    assert "compliance_strategy" not in text  # recorded twice in the newer file, not a difference
+    assert "ours mujoco, outcome, residual actions, 100k env steps, 0.5 updates" in time_row
+    assert "IQR ours [1, 1] s; seed stack [20, 40] s" in time_row
+    assert "not run: SB3 SAC on our adapter" in time_row
+    assert "| pending |" in hard_row  # neither file has RectExtractHard
 
 
 def test_a_study_of_two_collapsed_learners_is_not_a_readme_row():

@@ -29,20 +29,19 @@ learning protocol's rule (its seed 200's final policy), so no choice of a checkp
 from __future__ import annotations
 
 import json
+import math
 from pathlib import Path
 
-from benchmarks.baselines.seed_stack import result_path as seed_result_path
-from benchmarks.baselines.time_to_success import HARD_ENV, compare
-from benchmarks.baselines.time_to_success import result_path as ours_result_path
+from benchmarks.baselines.time_to_success import HARD_ENV
 from benchmarks.common import (
     EVALS_RESULTS,
     STUDIES_RESULTS,
-    fmt_settings_diff,
     rel,
     settings_diff,
     table,
 )
 from benchmarks.evals.experiments import ordered
+from benchmarks.evals.learning import STACK_FILES, censored_median_iqr, stack_setting
 from benchmarks.evals.paired_reduction import POLICIES, how_trained
 from benchmarks.evals.rl_vs_rlcs import fmt_interval
 from benchmarks.evals.rl_vs_rlcs import result_files as rl_vs_rlcs_files
@@ -84,12 +83,13 @@ THESIS: dict[str, tuple[str, str, str]] = {
         "Sec 4.2.5",
     ),
     "time": (
-        "Training clock to 95 % success, RectExtract: seed stack (PyBullet + SB3) vs ours",
+        "Training clock to 95 % success, RectExtract, 5 seeds per stack: seed stack (PyBullet "
+        "+ SB3) vs ours",
         "not stated",
         "Sec 4.2.5",
     ),
     "time_hard": (
-        f"Best success within a 600 s training budget, {HARD_ENV}: seed stack vs ours",
+        f"Final policies' success, {HARD_ENV}, 5 seeds per stack: other stacks vs ours",
         "no such task (a variant added here)",
         "",
     ),
@@ -420,59 +420,87 @@ def _throughput_row() -> str:
     return _row("throughput", ours, "- (one run)", NO_CLAIM, ENGINES_CSV)
 
 
-def _train_settings(d: dict) -> dict:
-    """A time-to-success run's recorded settings: its config with the engine (recorded at the
-    top level, absent before the engine existed: mjx) among the env overrides."""
-    cfg = dict(d["config"])
-    cfg.pop("compliance_strategy", None)  # newer files copy env_overrides' entry here
-    cfg["env_overrides"] = {**cfg.get("env_overrides", {}), "engine": d.get("engine", "mjx")}
-    return cfg
+#: how the README names each stack of the learning benchmark
+STACK_LABELS = {"ours": "ours", "seed": "seed stack", "sb3": "SB3 SAC on our adapter"}
 
 
-def engines_differ(a: dict, b: dict) -> str:
-    """What differs between two of our time-to-success runs: their recorded configs diffed,
-    and the code (the date of each run)."""
-    diffs = [
-        (k.removeprefix("env_overrides."), x, y)
-        for k, x, y in settings_diff(_train_settings(a), _train_settings(b))
-    ]
-    text = fmt_settings_diff(diffs, unset="default")
-    return f"{text}; code of {a['date'][:10]} vs {b['date'][:10]}"
+def stack_tasks() -> dict[str, dict[str, dict]]:
+    """Each stack's task entries in the residual protocol's learning benchmark (a stack whose
+    file is not committed is absent)."""
+    return {
+        stack: {t["task"]: t for t in json.loads(path.read_text())["tasks"]}
+        for stack, path in STACK_FILES.items()
+        if path.exists()
+    }
+
+
+def stack_settings(entries: dict[str, dict]) -> str:
+    """What the stacks of a row trained on: engine, reward, actions, budget, updates/env step."""
+    return "; ".join(
+        f"{STACK_LABELS[stack]} {stack_setting(t)}, {t['config']['num_timesteps'] / 1e3:g}k env "
+        f"steps, {t['updates_per_env_step']:g} updates/env step"
+        for stack, t in entries.items()
+    )
+
+
+def _clock_text(t: dict) -> tuple[str, str]:
+    """Median and IQR of a stack's training clock to 95 % (never reached: ``inf``)."""
+    med, q1, q3 = censored_median_iqr(t["per_seed"], "clock_to_95_s")
+
+    def one(v: float) -> str:
+        return "not reached" if math.isinf(v) else f"{v:.3g}"
+
+    return one(med), f"[{one(q1)}, {one(q3)}] s"
 
 
 def _time_rows() -> list[str]:
+    """RectExtract's clock to 95 % and RectExtractHard's final success, the stacks of the
+    learning benchmark (5 seeds each, residual protocol) side by side."""
+    done = stack_tasks()
+    paths = [STACK_FILES[s] for s in STACK_LABELS]
     out = []
-    seed_p = seed_result_path("RectExtract", "cpu-2core")
-    ours = [ours_result_path("RectExtract", "cpu-2core", e) for e in ("mjx", "mujoco")]
-    if seed_p.exists() and all(p.exists() for p in ours):
-        seed = json.loads(seed_p.read_text())
-        a, b = (json.loads(p.read_text()) for p in ours)
-        ca, cb = compare(seed, a), compare(seed, b)
-        ours_txt = (
-            f"seed stack {ca['seed_time_s']:.0f} s; ours {ca['ours_time_s']:.0f} s vs "
-            f"{cb['ours_time_s']:.0f} s at {a['env_steps_to_success'] / 1e3:.1f}k vs "
-            f"{b['env_steps_to_success'] / 1e3:.1f}k env steps; ours differ in "
-            f"{engines_differ(a, b)}"
-        )
-        out.append(_row("time", ours_txt, "- (one run each)", NO_CLAIM, seed_p, *ours))
-    else:
-        out.append(_pending("time", seed_p, *ours))
-    seed_p = seed_result_path(HARD_ENV, "cpu-2core")
-    ours = [ours_result_path(HARD_ENV, "cpu-2core", e) for e in ("mjx", "mujoco")]
-    if seed_p.exists() and all(p.exists() for p in ours):
-        seed = json.loads(seed_p.read_text())
-        a, b = (json.loads(p.read_text()) for p in ours)
-        ca, cb = compare(seed, a), compare(seed, b)
-        t = b.get("time_to_success_s")
-        reached = f", 95 % in {t:.1f} s" if t is not None else ""
-        ours_txt = (
-            f"seed stack {ca['seed_best_success']:.2f}; ours {ca['ours_best_success']:.2f} vs "
-            f"{cb['ours_best_success']:.2f}{reached}; ours differ in {engines_differ(a, b)} "
-            f"(`{a['profile']}` profile of each date)"
-        )
-        out.append(_row("time_hard", ours_txt, "- (one run each)", NO_CLAIM, seed_p, *ours))
-    else:
-        out.append(_pending("time_hard", seed_p, *ours))
+    rows = {"time": "RectExtract", "time_hard": HARD_ENV}
+    for key, task in rows.items():
+        entries = {s: done[s][task] for s in STACK_LABELS if task in done.get(s, {})}
+        if "ours" not in entries or len(entries) < 2:
+            out.append(_pending(key, *paths))
+            continue
+        files = [STACK_FILES[s] for s in entries]
+        missing = [STACK_LABELS[s] for s in STACK_LABELS if s not in entries]
+        not_run = f"; not run: {', '.join(missing)}" if missing else ""
+        if key == "time":
+            parts, iqrs = [], []
+            for stack, t in entries.items():
+                med, iqr = _clock_text(t)
+                n = len(t["seeds"])
+                parts.append(
+                    f"{STACK_LABELS[stack]} {med} s ({t['reached_95']} of {n} reached, "
+                    f"{t['at_95_untrained']} at 95 % untrained)"
+                )
+                iqrs.append(f"{STACK_LABELS[stack]} {iqr}")
+            ours_m = censored_median_iqr(entries["ours"]["per_seed"], "clock_to_95_s")[0]
+            seed_m = (
+                censored_median_iqr(entries["seed"]["per_seed"], "clock_to_95_s")[0]
+                if "seed" in entries
+                else math.inf
+            )
+            ratio = ours_m / seed_m if math.isfinite(ours_m) and math.isfinite(seed_m) else None
+            ratio_text = f"; ours / seed stack {ratio:.2g}" if ratio is not None else ""
+            text = f"{', '.join(parts)}{ratio_text}; trained on: {stack_settings(entries)}{not_run}"
+            out.append(_row(key, text, "IQR " + "; ".join(iqrs), NO_CLAIM, *files))
+        else:
+            parts = [
+                f"{STACK_LABELS[s]} {t['final_success_iqm']:.2f} "
+                f"({round(t['share_at_95'] * len(t['seeds']))} of {len(t['seeds'])} seeds "
+                f">= 0.95)"
+                for s, t in entries.items()
+            ]
+            cis = [
+                f"{STACK_LABELS[s]} {_ci(t['final_success_ci95'], '.2f', '')}"
+                for s, t in entries.items()
+            ]
+            text = f"IQM {', '.join(parts)}; trained on: {stack_settings(entries)}{not_run}"
+            out.append(_row(key, text, "; ".join(cis), NO_CLAIM, *files))
     return out
 
 

@@ -402,6 +402,73 @@ def _ci_text(ci: list[float] | None, fmt: str) -> str:
     return "-" if ci is None else f"[{ci[0]:{fmt}}, {ci[1]:{fmt}}]"
 
 
+#: the residual protocol's result file of each stack (one ``--out``: the stacks sit together)
+STACK_FILES = {
+    stack: EVALS_RESULTS
+    / "learning_residual_cpu-2core"
+    / ("learning.json" if stack == "ours" else f"learning_{stack}.json")
+    for stack in stacks.STACKS
+}
+
+
+def censored_median_iqr(per_seed: list[dict], key: str) -> tuple[float, float, float]:
+    """``(median, q1, q3)`` of ``key`` (``steps_to_95`` or ``clock_to_95_s``) over ALL seeds, a
+    seed that never reached 95 % counted as infinitely late (``inf``), so that a median over
+    the seeds that reached it alone does not flatter a stack. Order statistics (``nearest``):
+    no interpolation with ``inf``."""
+    vals = [math.inf if s[key] is None else float(s[key]) for s in per_seed]
+    q1, med, q3 = np.percentile(vals, [25, 50, 75], method="nearest")
+    return float(med), float(q1), float(q3)
+
+
+def stack_setting(t: dict) -> str:
+    """What a stack's task entry trained on: engine, reward kind, residual or plain actions."""
+    actions = "residual" if t["config"].get("env_overrides", {}).get("action.residual") else "plain"
+    return f"{t['engine']}, {t['reward_kind']}, {actions} actions"
+
+
+def to_95_text(t: dict, key: str, fmt: str, budget_text: str) -> str:
+    """``median [q1, q3] (k of n)`` of :func:`censored_median_iqr`, a censored value shown as
+    ``> budget``."""
+
+    def one(v: float) -> str:
+        return f"> {budget_text}" if math.isinf(v) else f"{v:{fmt}}"
+
+    med, q1, q3 = censored_median_iqr(t["per_seed"], key)
+    return f"{one(med)} [{one(q1)}, {one(q3)}] ({t['reached_95']} of {len(t['seeds'])})"
+
+
+@table("learning_stacks")
+def stacks_table() -> str:
+    """The three stacks of the residual protocol per task, from their result files."""
+    lines = [
+        "| stack | task | trained on | budget, env steps | updates / env step | seeds | final "
+        "success IQM [95 % CI] | seeds >= 0.95 | collapsed | env steps to 95 %: median [IQR] "
+        "(reached) | training clock to 95 %, s: median [IQR] (reached) | mean F_z minus "
+        "baseline, N | file |",
+        "|---|---|---|---|---|---|---|---|---|---|---|---|---|",
+    ]
+    for stack, path in STACK_FILES.items():
+        if not path.exists():
+            lines.append(f"| {stack} | pending | | | | | | | | | | | `{rel(path)}` |")
+            continue
+        for t in json.loads(path.read_text())["tasks"]:
+            n, budget = len(t["seeds"]), t["config"]["num_timesteps"]
+            budget_text = f"{budget / 1e3:g}k"
+            lines.append(
+                f"| {stack} | {t['task']} | {stack_setting(t)} | {budget_text} | "
+                f"{t['updates_per_env_step']:g} | {t['seeds'][0]}-{t['seeds'][-1]} | "
+                f"{t['final_success_iqm']:.2f} {_ci_text(t['final_success_ci95'], '.2f')} | "
+                f"{round(t['share_at_95'] * n)} of {n} | {len(t['seeds_collapsed'])} of {n} | "
+                f"{to_95_text(t, 'steps_to_95', '.0f', budget_text)} | "
+                f"{to_95_text(t, 'clock_to_95_s', '.3g', budget_text + ' steps')} | "
+                f"{t['mean_fz_minus_baseline_N']:+.3g} "
+                f"{_ci_text(t['mean_fz_minus_baseline_ci95'], '+.3g')} | "
+                f"[`{path.name}`]({rel(path)}) |"
+            )
+    return "\n".join(lines)
+
+
 @table("learning_residual")
 def residual_table() -> str:
     """The residual benchmark per task (final policies over seeds) from its result files."""

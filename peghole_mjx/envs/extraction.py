@@ -311,7 +311,7 @@ class PegHoleEnv(PegHoleBase):
     | extraction_force | ``-w_fz |f_z| / 1 N``: not in eq 4.4, 0 by default |
     | end | ``+1`` on success, ``-1`` on failure (jamming, NaN, time limit) |
 
-    ``outcome`` (opt-in): ``time`` ``-time_cost`` per step; ``force``
+    ``outcome`` (training's default): ``time`` ``-time_cost`` per step; ``force``
     ``-time_cost w_contact min(|f| / 20 N, 1)``; ``progress`` the potential-based shaping
     ``gamma Phi(s') - Phi(s)``; ``end`` ``-time_cost (1 + w_contact) / (1 - gamma)`` on a
     terminal failure (jamming, NaN, overflow). A time-out alone sets ``info["truncation"]``.

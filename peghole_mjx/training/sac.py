@@ -28,7 +28,7 @@ process holds the same learner (tested with two CPU processes: tests/test_distri
 
 Time limits. Under the thesis's reward an episode that reaches ``episode_length`` is a failure
 with reward -1 (the thesis's rule) and a terminal transition. Under the ``outcome`` reward
-(opt-in, :mod:`peghole_mjx.envs.reward`) a time-out alone is a truncation
+(training's default, :mod:`peghole_mjx.envs.reward`) a time-out alone is a truncation
 (``State.info["truncation"]``): the transition keeps its discount and the critic bootstraps it
 from the true next observation, which the replay stores before the world's reset. Brax's own
 loss instead drops truncated transitions (``1 - truncation`` mask), because its auto-reset
