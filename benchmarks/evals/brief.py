@@ -24,6 +24,9 @@ loaded into PyBullet as the seed stack did (one convex hull) and as convex piece
 Decision (2026-12-06): R3 and R4 of ``rect`` and ``rect_hard`` from the published policies'
 ``evaluation.json`` (512 fresh episodes, seed 30000), the policies published by the residual
 learning protocol's rule (its seed 200's final policy), so no choice of a checkpoint saw them.
+Decision (2026-12-06): the two learning-speed rows come from the learning benchmark's three
+stacks under the residual protocol (5 seeds each, ``learning*.json``), no longer from single
+time-to-success runs; a seed that never reached 95 % counts as infinitely late in a median.
 """
 
 from __future__ import annotations
@@ -89,7 +92,7 @@ THESIS: dict[str, tuple[str, str, str]] = {
         "Sec 4.2.5",
     ),
     "time_hard": (
-        f"Final policies' success, {HARD_ENV}, 5 seeds per stack: other stacks vs ours",
+        f"Final success, {HARD_ENV}, 5 seeds per stack: other stacks vs ours",
         "no such task (a variant added here)",
         "",
     ),
@@ -421,7 +424,7 @@ def _throughput_row() -> str:
 
 
 #: how the README names each stack of the learning benchmark
-STACK_LABELS = {"ours": "ours", "seed": "seed stack", "sb3": "SB3 SAC on our adapter"}
+STACK_LABELS = {"ours": "ours", "seed": "seed stack", "sb3": "SB3 on our adapter"}
 
 
 def stack_tasks() -> dict[str, dict[str, dict]]:
@@ -437,8 +440,8 @@ def stack_tasks() -> dict[str, dict[str, dict]]:
 def stack_settings(entries: dict[str, dict]) -> str:
     """What the stacks of a row trained on: engine, reward, actions, budget, updates/env step."""
     return "; ".join(
-        f"{STACK_LABELS[stack]} {stack_setting(t)}, {t['config']['num_timesteps'] / 1e3:g}k env "
-        f"steps, {t['updates_per_env_step']:g} updates/env step"
+        f"{STACK_LABELS[stack]}: {stack_setting(t).removesuffix(' actions')}, "
+        f"{t['config']['num_timesteps'] / 1e3:g}k steps, {t['updates_per_env_step']:g} updates/step"
         for stack, t in entries.items()
     )
 
@@ -473,9 +476,11 @@ def _time_rows() -> list[str]:
             for stack, t in entries.items():
                 med, iqr = _clock_text(t)
                 n = len(t["seeds"])
+                notes = [f"{t['reached_95']} of {n} reached"] if t["reached_95"] < n else []
+                if t["at_95_untrained"]:
+                    notes.append(f"{t['at_95_untrained']} of {n} at 95 % untrained")
                 parts.append(
-                    f"{STACK_LABELS[stack]} {med} s ({t['reached_95']} of {n} reached, "
-                    f"{t['at_95_untrained']} at 95 % untrained)"
+                    f"{STACK_LABELS[stack]} {med} s" + (f" ({', '.join(notes)})" if notes else "")
                 )
                 iqrs.append(f"{STACK_LABELS[stack]} {iqr}")
             ours_m = censored_median_iqr(entries["ours"]["per_seed"], "clock_to_95_s")[0]
@@ -486,7 +491,7 @@ def _time_rows() -> list[str]:
             )
             ratio = ours_m / seed_m if math.isfinite(ours_m) and math.isfinite(seed_m) else None
             ratio_text = f"; ours / seed stack {ratio:.2g}" if ratio is not None else ""
-            text = f"{', '.join(parts)}{ratio_text}; trained on: {stack_settings(entries)}{not_run}"
+            text = f"{', '.join(parts)}{ratio_text}; {stack_settings(entries)}{not_run}"
             out.append(_row(key, text, "IQR " + "; ".join(iqrs), NO_CLAIM, *files))
         else:
             parts = [
@@ -499,7 +504,7 @@ def _time_rows() -> list[str]:
                 f"{STACK_LABELS[s]} {_ci(t['final_success_ci95'], '.2f', '')}"
                 for s, t in entries.items()
             ]
-            text = f"IQM {', '.join(parts)}; trained on: {stack_settings(entries)}{not_run}"
+            text = f"IQM {', '.join(parts)}; {stack_settings(entries)}{not_run}"
             out.append(_row(key, text, "; ".join(cis), NO_CLAIM, *files))
     return out
 
