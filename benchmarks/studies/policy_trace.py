@@ -35,7 +35,7 @@ from benchmarks.common import STUDIES_RESULTS, cpu_label, out_file
 from benchmarks.evals.hard_variants import failure_causes
 from peghole_mjx.core.errors import UserInputError
 from peghole_mjx.envs.rollout import episode_keys
-from peghole_mjx.files.provenance import provenance
+from peghole_mjx.files.provenance import run_provenance
 from peghole_mjx.policies import load_policy
 
 #: the per-step quantities traced (all per world); ``ff`` is the accumulated feed-forward
@@ -189,7 +189,10 @@ def main(argv: list[str] | None = None) -> int:
         "jam_rule": {"jam_force_N": c.jam_force_N, "jam_time_s": c.jam_time_s},
         "episodes": args.episodes,
         "seed": args.seed,
-        **provenance(),
+        "config": "see policy, env_overrides, episodes, seed",
+        **run_provenance(
+            ["python", "-m", "benchmarks.studies.policy_trace", *(argv or sys.argv[1:])]
+        ),
         "wall_s": round(time.perf_counter() - t0, 1),
         "by_outcome": summarise(rows),
         "rows": rows,
