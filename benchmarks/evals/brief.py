@@ -31,6 +31,7 @@ time-to-success runs; a seed that never reached 95 % counts as infinitely late i
 
 from __future__ import annotations
 
+import functools
 import json
 import math
 from pathlib import Path
@@ -44,7 +45,12 @@ from benchmarks.common import (
     table,
 )
 from benchmarks.evals.experiments import ordered
-from benchmarks.evals.learning import STACK_FILES, censored_median_iqr, stack_setting
+from benchmarks.evals.learning import (
+    STACK_FILES,
+    censored_median_iqr,
+    censored_text,
+    stack_setting,
+)
 from benchmarks.evals.paired_reduction import POLICIES, how_trained
 from benchmarks.evals.rl_vs_rlcs import fmt_interval
 from benchmarks.evals.rl_vs_rlcs import result_files as rl_vs_rlcs_files
@@ -440,72 +446,62 @@ def stack_tasks() -> dict[str, dict[str, dict]]:
 def stack_settings(entries: dict[str, dict]) -> str:
     """What the stacks of a row trained on: engine, reward, actions, budget, updates/env step."""
     return "; ".join(
-        f"{STACK_LABELS[stack]}: {stack_setting(t).removesuffix(' actions')}, "
+        f"{STACK_LABELS[stack]}: {stack_setting(t)}, "
         f"{t['config']['num_timesteps'] / 1e3:g}k steps, {t['updates_per_env_step']:g} updates/step"
         for stack, t in entries.items()
     )
 
 
-def _clock_text(t: dict) -> tuple[str, str]:
-    """Median and IQR of a stack's training clock to 95 % (never reached: ``inf``)."""
-    med, q1, q3 = censored_median_iqr(t["per_seed"], "clock_to_95_s")
+def _clock_row(entries: dict[str, dict]) -> tuple[str, str]:
+    """RectExtract's row: each stack's median training clock to 95 % (a seed that never
+    reached it counted as infinitely late) with its IQR, and ours over the seed stack's."""
+    parts, iqrs, medians = [], [], {}
+    for stack, t in entries.items():
+        med, q1, q3 = censored_median_iqr(t["per_seed"], "clock_to_95_s")
+        medians[stack] = med
+        n = len(t["seeds"])
+        notes = [f"{t['reached_95']} of {n} reached"] if t["reached_95"] < n else []
+        if t["at_95_untrained"]:
+            notes.append(f"{t['at_95_untrained']} of {n} at 95 % untrained")
+        note = f" ({', '.join(notes)})" if notes else ""
+        one = functools.partial(censored_text, fmt=".3g", censored="not reached")
+        parts.append(f"{STACK_LABELS[stack]} {one(med)} s{note}")
+        iqrs.append(f"{STACK_LABELS[stack]} [{one(q1)}, {one(q3)}] s")
+    ours, seed = medians["ours"], medians.get("seed", math.inf)
+    comparable = math.isfinite(ours + seed) and seed > 0
+    ratio = f"; ours / seed stack {ours / seed:.2g}" if comparable else ""
+    return f"{', '.join(parts)}{ratio}", "IQR " + "; ".join(iqrs)
 
-    def one(v: float) -> str:
-        return "not reached" if math.isinf(v) else f"{v:.3g}"
 
-    return one(med), f"[{one(q1)}, {one(q3)}] s"
+def _final_row(entries: dict[str, dict]) -> tuple[str, str]:
+    """RectExtractHard's row: each stack's final-success IQM, seeds >= 0.95 and interval."""
+    parts, cis = [], []
+    for stack, t in entries.items():
+        n = len(t["seeds"])
+        parts.append(
+            f"{STACK_LABELS[stack]} {t['final_success_iqm']:.2f} "
+            f"({round(t['share_at_95'] * n)} of {n} seeds >= 0.95)"
+        )
+        cis.append(f"{STACK_LABELS[stack]} {_ci(t['final_success_ci95'], '.2f', '')}")
+    return f"IQM {', '.join(parts)}", "; ".join(cis)
 
 
 def _time_rows() -> list[str]:
     """RectExtract's clock to 95 % and RectExtractHard's final success, the stacks of the
     learning benchmark (5 seeds each, residual protocol) side by side."""
     done = stack_tasks()
-    paths = [STACK_FILES[s] for s in STACK_LABELS]
     out = []
-    rows = {"time": "RectExtract", "time_hard": HARD_ENV}
-    for key, task in rows.items():
+    rows = (("time", "RectExtract", _clock_row), ("time_hard", HARD_ENV, _final_row))
+    for key, task, cells in rows:
         entries = {s: done[s][task] for s in STACK_LABELS if task in done.get(s, {})}
         if "ours" not in entries or len(entries) < 2:
-            out.append(_pending(key, *paths))
+            out.append(_pending(key, *STACK_FILES.values()))
             continue
-        files = [STACK_FILES[s] for s in entries]
         missing = [STACK_LABELS[s] for s in STACK_LABELS if s not in entries]
         not_run = f"; not run: {', '.join(missing)}" if missing else ""
-        if key == "time":
-            parts, iqrs = [], []
-            for stack, t in entries.items():
-                med, iqr = _clock_text(t)
-                n = len(t["seeds"])
-                notes = [f"{t['reached_95']} of {n} reached"] if t["reached_95"] < n else []
-                if t["at_95_untrained"]:
-                    notes.append(f"{t['at_95_untrained']} of {n} at 95 % untrained")
-                parts.append(
-                    f"{STACK_LABELS[stack]} {med} s" + (f" ({', '.join(notes)})" if notes else "")
-                )
-                iqrs.append(f"{STACK_LABELS[stack]} {iqr}")
-            ours_m = censored_median_iqr(entries["ours"]["per_seed"], "clock_to_95_s")[0]
-            seed_m = (
-                censored_median_iqr(entries["seed"]["per_seed"], "clock_to_95_s")[0]
-                if "seed" in entries
-                else math.inf
-            )
-            ratio = ours_m / seed_m if math.isfinite(ours_m) and math.isfinite(seed_m) else None
-            ratio_text = f"; ours / seed stack {ratio:.2g}" if ratio is not None else ""
-            text = f"{', '.join(parts)}{ratio_text}; {stack_settings(entries)}{not_run}"
-            out.append(_row(key, text, "IQR " + "; ".join(iqrs), NO_CLAIM, *files))
-        else:
-            parts = [
-                f"{STACK_LABELS[s]} {t['final_success_iqm']:.2f} "
-                f"({round(t['share_at_95'] * len(t['seeds']))} of {len(t['seeds'])} seeds "
-                f">= 0.95)"
-                for s, t in entries.items()
-            ]
-            cis = [
-                f"{STACK_LABELS[s]} {_ci(t['final_success_ci95'], '.2f', '')}"
-                for s, t in entries.items()
-            ]
-            text = f"IQM {', '.join(parts)}; {stack_settings(entries)}{not_run}"
-            out.append(_row(key, text, "; ".join(cis), NO_CLAIM, *files))
+        ours, interval = cells(entries)
+        text = f"{ours}; {stack_settings(entries)}{not_run}"
+        out.append(_row(key, text, interval, NO_CLAIM, *(STACK_FILES[s] for s in entries)))
     return out
 
 

@@ -422,28 +422,33 @@ def censored_median_iqr(per_seed: list[dict], key: str) -> tuple[float, float, f
 
 
 def stack_setting(t: dict) -> str:
-    """What a stack's task entry trained on: engine, reward kind, residual or plain actions."""
+    """What a stack's task entry trained on: engine, reward kind, ``residual`` or ``plain``
+    actions."""
     actions = "residual" if t["config"].get("env_overrides", {}).get("action.residual") else "plain"
-    return f"{t['engine']}, {t['reward_kind']}, {actions} actions"
+    return f"{t['engine']}, {t['reward_kind']}, {actions}"
+
+
+def censored_text(v: float, fmt: str, censored: str) -> str:
+    """One value of :func:`censored_median_iqr`: ``censored`` where it is ``inf``."""
+    return censored if math.isinf(v) else f"{v:{fmt}}"
 
 
 def to_95_text(t: dict, key: str, fmt: str, budget_text: str) -> str:
     """``median [q1, q3] (k of n)`` of :func:`censored_median_iqr`, a censored value shown as
     ``> budget``."""
-
-    def one(v: float) -> str:
-        return f"> {budget_text}" if math.isinf(v) else f"{v:{fmt}}"
-
-    med, q1, q3 = censored_median_iqr(t["per_seed"], key)
-    return f"{one(med)} [{one(q1)}, {one(q3)}] ({t['reached_95']} of {len(t['seeds'])})"
+    med, q1, q3 = (
+        censored_text(v, fmt, f"> {budget_text}") for v in censored_median_iqr(t["per_seed"], key)
+    )
+    return f"{med} [{q1}, {q3}] ({t['reached_95']} of {len(t['seeds'])})"
 
 
 @table("learning_stacks")
 def stacks_table() -> str:
     """The three stacks of the residual protocol per task, from their result files."""
     lines = [
-        "| stack | task | trained on | budget, env steps | updates / env step | seeds | final "
-        "success IQM [95 % CI] | seeds >= 0.95 | collapsed | env steps to 95 %: median [IQR] "
+        "| stack | task | trained on (engine, reward, actions) | budget, env steps | updates / "
+        "env step | seeds | final success IQM [95 % CI] | seeds >= 0.95 | collapsed | env "
+        "steps to 95 %: median [IQR] "
         "(reached) | training clock to 95 %, s: median [IQR] (reached) | mean F_z minus "
         "baseline, N | file |",
         "|---|---|---|---|---|---|---|---|---|---|---|---|---|",

@@ -238,7 +238,9 @@ class MujocoEngine:
         scripted client's worlds (the experiments: :meth:`law_step`, :meth:`contact_forces`)."""
         qpos = np.atleast_2d(np.asarray(qpos, float))
         n = qpos.shape[0]
-        p = _Pool(self.model, n, self.threads, True, passive=self.ctrl.compensate_passive)
+        p = _Pool(
+            self.model, n, self.threads, persistent=True, passive=self.ctrl.compensate_passive
+        )
         p.batch.reset(stage=mujoco.mjtStage.mjSTAGE_NONE)
         p.qpos[:] = qpos
         self._run(p, p.batch.forward)
