@@ -220,6 +220,7 @@ def test_the_readme_learning_rows_come_from_the_stacks_files_and_name_what_diffe
 ):
     files = {s: tmp_path / f"learning_{s}.json" for s in ("ours", "seed", "sb3")}
     monkeypatch.setattr(brief, "STACK_FILES", files)
+    monkeypatch.setattr(brief, "UTD1_FILE", tmp_path / "utd1" / "learning.json")
     rows = brief._time_rows()
     assert all("| pending |" in r for r in rows)  # no stack file: nothing compared
     ours = _stack_entry("RectExtract", "mujoco", "outcome", True, 100_000, 0.5, [1.0] * 5, 5)
@@ -234,8 +235,25 @@ def test_the_readme_learning_rows_come_from_the_stacks_files_and_name_what_diffe
     assert "seed stack: pybullet, thesis, plain, 32k steps, 0.02 updates/step" in time_row
     assert "ours: mujoco, outcome, residual, 100k steps, 0.5 updates/step" in time_row
     assert "IQR ours [1, 1] s; seed stack [20, 40] s" in time_row
-    assert "not run: SB3 on our adapter" in time_row
+    assert "not run: ours at 1 update/step, SB3 on our adapter" in time_row
     assert "| pending |" in hard_row  # neither file has RectExtractHard
+    # a --finished-only report: its finished task is an entry, its unfinished one is named
+    partial = tmp_path / "utd1" / "learning_partial.json"
+    partial.parent.mkdir()
+    utd1 = _stack_entry("RectExtract", "mujoco", "outcome", True, 32_000, 1.0, [2.0] * 5)
+    pending = [{"task": "RectExtractHard", "seed": 304}]
+    hard = _stack_entry("RectExtractHard", "mujoco", "outcome", True, 100_000, 0.5, [None] * 5)
+    files["ours"].write_text(json.dumps({"tasks": [ours, hard]}))
+    partial.write_text(json.dumps({"tasks": [utd1, hard | {"seeds": [300]}], "pending": pending}))
+    time_row, hard_row = brief._time_rows()
+    assert "ours at 1 update/step 2 s" in time_row
+    assert "ours at 1 update/step: mujoco, outcome, residual, 32k steps, 1 updates/step" in time_row
+    assert "learning_partial.json" in time_row  # the link names the report read
+    assert "| pending |" in hard_row  # ours alone: nothing compared
+    files["sb3"].write_text(json.dumps({"tasks": [hard]}))
+    hard_row = brief._time_rows()[1]
+    assert "not finished: ours at 1 update/step" in hard_row
+    assert "not run: seed stack" in hard_row
 
 
 def test_a_study_of_two_collapsed_learners_is_not_a_readme_row():

@@ -47,8 +47,11 @@ from benchmarks.common import (
 from benchmarks.evals.experiments import ordered
 from benchmarks.evals.learning import (
     STACK_FILES,
+    UTD1_FILE,
     censored_median_iqr,
     censored_text,
+    pending_seeds,
+    report_file,
     stack_setting,
 )
 from benchmarks.evals.paired_reduction import POLICIES, how_trained
@@ -429,18 +432,45 @@ def _throughput_row() -> str:
     return _row("throughput", ours, "- (one run)", NO_CLAIM, ENGINES_CSV)
 
 
-#: how the README names each stack of the learning benchmark
-STACK_LABELS = {"ours": "ours", "seed": "seed stack", "sb3": "SB3 on our adapter"}
+#: how the README names each row entry of the learning benchmark: the residual protocol's three
+#: stacks and our learner under the one-update-per-env-step protocol
+STACK_LABELS = {
+    "ours": "ours",
+    "ours_utd1": "ours at 1 update/step",
+    "seed": "seed stack",
+    "sb3": "SB3 on our adapter",
+}
+
+
+def row_files() -> dict[str, Path]:
+    """The result file of each entry of :data:`STACK_LABELS`."""
+    return {**STACK_FILES, "ours_utd1": UTD1_FILE}
 
 
 def stack_tasks() -> dict[str, dict[str, dict]]:
-    """Each stack's task entries in the residual protocol's learning benchmark (a stack whose
-    file is not committed is absent)."""
-    return {
-        stack: {t["task"]: t for t in json.loads(path.read_text())["tasks"]}
-        for stack, path in STACK_FILES.items()
-        if path.exists()
-    }
+    """Each entry's finished tasks (all seeds done) in its learning-benchmark report (a
+    ``--finished-only`` report's tasks with pending seeds, and an entry with no report, are
+    absent)."""
+    out = {}
+    for stack, declared in row_files().items():
+        path = report_file(declared)
+        if path is None:
+            continue
+        doc = json.loads(path.read_text())
+        out[stack] = {
+            t["task"]: t | {"file": path} for t in doc["tasks"] if not pending_seeds(doc, t["task"])
+        }
+    return out
+
+
+def unfinished_tasks() -> dict[str, set[str]]:
+    """Each entry's tasks that a ``--finished-only`` report names with pending seeds."""
+    out = {}
+    for stack, declared in row_files().items():
+        path = report_file(declared)
+        if path is not None:
+            out[stack] = {p["task"] for p in json.loads(path.read_text()).get("pending", [])}
+    return out
 
 
 def stack_settings(entries: dict[str, dict]) -> str:
@@ -489,7 +519,7 @@ def _final_row(entries: dict[str, dict]) -> tuple[str, str]:
 def _time_rows() -> list[str]:
     """RectExtract's clock to 95 % and RectExtractHard's final success, the stacks of the
     learning benchmark (5 seeds each, residual protocol) side by side."""
-    done = stack_tasks()
+    done, unfinished = stack_tasks(), unfinished_tasks()
     out = []
     rows = (("time", "RectExtract", _clock_row), ("time_hard", HARD_ENV, _final_row))
     for key, task, cells in rows:
@@ -497,11 +527,14 @@ def _time_rows() -> list[str]:
         if "ours" not in entries or len(entries) < 2:
             out.append(_pending(key, *STACK_FILES.values()))
             continue
+        waiting = [STACK_LABELS[s] for s in STACK_LABELS if task in unfinished.get(s, ())]
         missing = [STACK_LABELS[s] for s in STACK_LABELS if s not in entries]
+        missing = [m for m in missing if m not in waiting]
         not_run = f"; not run: {', '.join(missing)}" if missing else ""
+        not_run += f"; not finished: {', '.join(waiting)}" if waiting else ""
         ours, interval = cells(entries)
         text = f"{ours}; {stack_settings(entries)}{not_run}"
-        out.append(_row(key, text, interval, NO_CLAIM, *(STACK_FILES[s] for s in entries)))
+        out.append(_row(key, text, interval, NO_CLAIM, *(t["file"] for t in entries.values())))
     return out
 
 

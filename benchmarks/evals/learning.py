@@ -402,6 +402,10 @@ def _ci_text(ci: list[float] | None, fmt: str) -> str:
     return "-" if ci is None else f"[{ci[0]:{fmt}}, {ci[1]:{fmt}}]"
 
 
+#: the one-update-per-env-step protocol's result file (docs/research/learner_settings.md): our
+#: learner with SB3's learner settings on fresh seeds, beside the residual protocol's stacks
+UTD1_FILE = EVALS_RESULTS / "learning_utd1_cpu-2core" / "learning.json"
+
 #: the residual protocol's result file of each stack (one ``--out``: the stacks sit together)
 STACK_FILES = {
     stack: EVALS_RESULTS
@@ -477,19 +481,48 @@ def stacks_table() -> str:
 @table("learning_residual")
 def residual_table() -> str:
     """The residual benchmark per task (final policies over seeds) from its result files."""
+    return benchmark_table(RESIDUAL_FILES)
+
+
+@table("learning_utd1")
+def utd1_table() -> str:
+    """The one-update-per-env-step benchmark per task, from its result file."""
+    return benchmark_table((UTD1_FILE,))
+
+
+def report_file(path: Path) -> Path | None:
+    """A benchmark's report: ``path`` (``learning.json``, all runs finished), else the
+    ``--finished-only`` report beside it (``learning_partial.json``), else None."""
+    partial = path.with_name(f"{path.stem}_partial{path.suffix}")
+    return path if path.exists() else partial if partial.exists() else None
+
+
+def pending_seeds(doc: dict, task: str) -> list[int]:
+    """The seeds of ``task`` a partial report names as not finished when it was written."""
+    return [p["seed"] for p in doc.get("pending", []) if p["task"] == task]
+
+
+def benchmark_table(paths: tuple[Path, ...]) -> str:
+    """One row per task of each learning-benchmark file in ``paths`` (final policies over
+    seeds, against the scripted baseline and the zero action)."""
     lines = [
-        "| task | seeds | final success per seed | IQM [95 % CI] | seeds >= 0.95 | collapsed "
-        "| mean F_z minus baseline, N | zero action: success / mean F_z | final minus zero "
-        "action: success; mean F_z, N | file |",
-        "|---|---|---|---|---|---|---|---|---|---|",
+        "| task | seeds | env steps; updates / env step | final success per seed | IQM [95 % CI] "
+        "| seeds >= 0.95 | collapsed | mean F_z minus baseline, N | zero action: success / mean "
+        "F_z | final minus zero action: success; mean F_z, N | file |",
+        "|---|---|---|---|---|---|---|---|---|---|---|",
     ]
-    for path in RESIDUAL_FILES:
-        if not path.exists():
-            lines.append(f"| pending | | | | | | | | | `{rel(path)}` |")
+    for declared in paths:
+        path = report_file(declared)
+        if path is None:
+            lines.append(f"| pending | | | | | | | | | | `{rel(declared)}` |")
             continue
         doc = json.loads(path.read_text())
         for t in doc["tasks"]:
             name = t["task"]
+            waiting = pending_seeds(doc, name)
+            seeds = f"{t['seeds'][0]}-{t['seeds'][-1]}" + (
+                f" (pending: {' '.join(map(str, waiting))})" if waiting else ""
+            )
             if name == "MeshExtract":  # a shape: its folder names it
                 name = f"MeshExtract ({path.parent.name})"
             n = len(t["seeds"])
@@ -506,14 +539,15 @@ def residual_table() -> str:
                 f"{_ci_text(t['final_minus_zero_action_mean_fz_ci95'], '+.3g')}"
             )
             lines.append(
-                f"| {name} | {t['seeds'][0]}-{t['seeds'][-1]} | "
+                f"| {name} | {seeds} | {t['config']['num_timesteps'] / 1e3:g}k; "
+                f"{t['updates_per_env_step']:g} | "
                 f"{' '.join(f'{v:.2f}' for v in t['final_success'])} | "
                 f"{t['final_success_iqm']:.2f} {_ci_text(t['final_success_ci95'], '.2f')} | "
                 f"{round(t['share_at_95'] * n)} of {n} | "
                 f"{len(t['seeds_collapsed'])} of {n} | "
                 f"{t['mean_fz_minus_baseline_N']:+.3g} "
                 f"{_ci_text(t['mean_fz_minus_baseline_ci95'], '+.3g')} | {zero_cell} | "
-                f"{learned} | [`{path.parent.name}/learning.json`]({rel(path)}) |"
+                f"{learned} | [`{path.parent.name}/{path.name}`]({rel(path)}) |"
             )
     return "\n".join(lines)
 

@@ -1,0 +1,88 @@
+"""The mid-run fall of a learner, beside its critic's loss (docs/research/learner_settings.md).
+
+Under one update per env step our SAC runs on RectExtractHard reach 1.00 evaluation success
+within a few thousand env steps and then fall; this module reads each run's ``metrics.csv``
+(one row per evaluation) and reports, per run, where the fall began and what the critic's loss
+did before it: the first evaluation at the run's best success, the first later evaluation more
+than :data:`benchmarks.evals.learning.COLLAPSE_MARGIN` below that best (the fall), the critic's
+loss at both, and the final evaluation. Nothing is trained or simulated here.
+
+``@table("critic_fall")`` lists the runs of :data:`RUN_GROUPS` that are committed.
+"""
+
+from __future__ import annotations
+
+from benchmarks.common import EVALS_RESULTS, rel, table
+from benchmarks.evals.learning import COLLAPSE_MARGIN, _f
+from peghole_mjx.training.logs import read_metrics
+
+_BENCH = EVALS_RESULTS / "learning_residual_cpu-2core"
+#: the run folders read, as (label, folder holding seed_* runs): the two tuning probes and the
+#: one-update-per-env-step benchmark's RectExtractHard seeds
+RUN_GROUPS = (
+    ("probe, mlp critic", _BENCH / "probe_sb3_settings" / "runs" / "RectExtractHard"),
+    ("probe, layernorm critic", _BENCH / "probe_layernorm" / "runs" / "RectExtractHard"),
+    (
+        "1 update/step protocol",
+        EVALS_RESULTS / "learning_utd1_cpu-2core" / "runs" / "RectExtractHard",
+    ),
+)
+
+
+def fall(rows: list[dict]) -> dict:
+    """Where a run's evaluations fell: ``best`` (the highest success), ``best_step`` (its first
+    evaluation), ``fall_step`` (the first later evaluation below ``best - COLLAPSE_MARGIN``,
+    None if none), the critic's loss at both (``loss_at_best``, ``loss_at_fall``) and the last
+    evaluation's success and loss (``last``, ``last_loss``)."""
+    evals = [
+        (int(r["step"]), _f(r.get("eval/success_rate")), _f(r.get("loss/critic"))) for r in rows
+    ]
+    evals = [e for e in evals if e[1] is not None]
+    if not evals:
+        raise ValueError("no evaluation rows")
+    best = max(e[1] for e in evals)
+    i = next(k for k, e in enumerate(evals) if e[1] == best)
+    later = [e for e in evals[i + 1 :] if e[1] < best - COLLAPSE_MARGIN]
+    down = later[0] if later else None
+    return {
+        "best": best,
+        "best_step": evals[i][0],
+        "loss_at_best": evals[i][2],
+        "fall_step": None if down is None else down[0],
+        "fall_success": None if down is None else down[1],
+        "loss_at_fall": None if down is None else down[2],
+        "last": evals[-1][1],
+        "last_loss": evals[-1][2],
+    }
+
+
+def _g(v: float | None, fmt: str) -> str:
+    return "-" if v is None else f"{v:{fmt}}"
+
+
+@table("critic_fall")
+def fall_table() -> str:
+    """Per committed run of :data:`RUN_GROUPS`: its best evaluation, where it fell, and the
+    critic's loss at both."""
+    lines = [
+        "| run | seed | best eval success (env steps) | critic loss there | first fall below "
+        "best - 0.05 (env steps) | critic loss there | last eval success | critic loss at "
+        "the end | metrics |",
+        "|---|---|---|---|---|---|---|---|---|",
+    ]
+    for label, folder in RUN_GROUPS:
+        runs = sorted(folder.glob("seed_*/metrics.csv"), key=lambda p: int(p.parent.name[5:]))
+        for path in runs:
+            f = fall(read_metrics(path.parent))
+            where = (
+                "none"
+                if f["fall_step"] is None
+                else f"{f['fall_success']:.2f} ({f['fall_step'] / 1e3:.1f}k)"
+            )
+            lines.append(
+                f"| {label} | {path.parent.name[5:]} | {f['best']:.2f} "
+                f"({f['best_step'] / 1e3:.1f}k) | {_g(f['loss_at_best'], '.3g')} | {where} | "
+                f"{_g(f['loss_at_fall'], '.3g')} | {f['last']:.2f} | "
+                f"{_g(f['last_loss'], '.3g')} | [`metrics.csv`]({rel(path)}) |"
+            )
+    return "\n".join(lines)
