@@ -1,13 +1,14 @@
 """The mid-run fall of a learner, beside its critic's loss (docs/research/learner_settings.md).
 
-Under one update per env step our SAC runs on RectExtractHard reach 1.00 evaluation success
+Under one update per env step our SAC runs on the Hard tasks reach 1.00 evaluation success
 within a few thousand env steps and then fall; this module reads each run's ``metrics.csv``
 (one row per evaluation) and reports, per run, where the fall began and what the critic's loss
 did before it: the first evaluation at the run's best success, the first later evaluation more
 than :data:`benchmarks.evals.learning.COLLAPSE_MARGIN` below that best (the fall), the critic's
 loss at both, and the final evaluation. Nothing is trained or simulated here.
 
-``@table("critic_fall")`` lists the runs of :data:`RUN_GROUPS` that are committed.
+``@table("critic_fall")`` lists the finished runs (``summary.json`` written) of
+:data:`RUN_GROUPS`.
 """
 
 from __future__ import annotations
@@ -17,15 +18,20 @@ from benchmarks.evals.learning import COLLAPSE_MARGIN, _f
 from peghole_mjx.training.logs import read_metrics
 
 _BENCH = EVALS_RESULTS / "learning_residual_cpu-2core"
-#: the run folders read, as (label, folder holding seed_* runs): the two tuning probes and the
-#: one-update-per-env-step benchmark's RectExtractHard seeds
+#: the run folders read, as (label, folder holding seed_* runs): the two tuning probes
+#: (RectExtractHard) and the one-update-per-env-step benchmark's two Hard tasks
+_UTD1 = EVALS_RESULTS / "learning_utd1_cpu-2core" / "runs"
 RUN_GROUPS = (
-    ("probe, mlp critic", _BENCH / "probe_sb3_settings" / "runs" / "RectExtractHard"),
-    ("probe, layernorm critic", _BENCH / "probe_layernorm" / "runs" / "RectExtractHard"),
     (
-        "1 update/step protocol",
-        EVALS_RESULTS / "learning_utd1_cpu-2core" / "runs" / "RectExtractHard",
+        "probe, mlp critic: RectExtractHard",
+        _BENCH / "probe_sb3_settings" / "runs" / "RectExtractHard",
     ),
+    (
+        "probe, layernorm critic: RectExtractHard",
+        _BENCH / "probe_layernorm" / "runs" / "RectExtractHard",
+    ),
+    ("1 update/step protocol: RectExtractHard", _UTD1 / "RectExtractHard"),
+    ("1 update/step protocol: DualExtractHard", _UTD1 / "DualExtractHard"),
 )
 
 
@@ -71,7 +77,10 @@ def fall_table() -> str:
         "|---|---|---|---|---|---|---|---|---|",
     ]
     for label, folder in RUN_GROUPS:
-        runs = sorted(folder.glob("seed_*/metrics.csv"), key=lambda p: int(p.parent.name[5:]))
+        runs = sorted(
+            (p for p in folder.glob("seed_*/metrics.csv") if (p.parent / "summary.json").exists()),
+            key=lambda p: int(p.parent.name[5:]),
+        )
         for path in runs:
             f = fall(read_metrics(path.parent))
             where = (
