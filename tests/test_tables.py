@@ -235,7 +235,8 @@ def test_the_readme_learning_rows_come_from_the_stacks_files_and_name_what_diffe
     assert "seed stack: pybullet, thesis, plain, 32k steps, 0.02 updates/step" in time_row
     assert "ours: mujoco, outcome, residual, 100k steps, 0.5 updates/step" in time_row
     assert "IQR ours [1, 1] s; seed stack [20, 40] s" in time_row
-    assert "not run: ours at 1 update/step, SB3 on our adapter" in time_row
+    assert "not run: SB3 on our adapter" in time_row
+    assert "1 update/step" not in time_row  # RectExtract's row: the residual protocol's stacks
     assert "| pending |" in hard_row  # neither file has RectExtractHard
     # a --finished-only report: its finished task is an entry, its unfinished one is named
     partial = tmp_path / "utd1" / "learning_partial.json"
@@ -245,15 +246,17 @@ def test_the_readme_learning_rows_come_from_the_stacks_files_and_name_what_diffe
     hard = _stack_entry("RectExtractHard", "mujoco", "outcome", True, 100_000, 0.5, [None] * 5)
     files["ours"].write_text(json.dumps({"tasks": [ours, hard]}))
     partial.write_text(json.dumps({"tasks": [utd1, hard | {"seeds": [300]}], "pending": pending}))
-    time_row, hard_row = brief._time_rows()
-    assert "ours at 1 update/step 2 s" in time_row
-    assert "ours at 1 update/step: mujoco, outcome, residual, 32k steps, 1 updates/step" in time_row
-    assert "learning_partial.json" in time_row  # the link names the report read
-    assert "| pending |" in hard_row  # ours alone: nothing compared
+    assert "| pending |" in brief._time_rows()[1]  # ours alone: nothing compared
     files["sb3"].write_text(json.dumps({"tasks": [hard]}))
     hard_row = brief._time_rows()[1]
     assert "not finished: ours at 1 update/step" in hard_row
     assert "not run: seed stack" in hard_row
+    # finished in the partial report: an entry of the row, linked to the report read
+    partial.write_text(json.dumps({"tasks": [utd1 | {"task": "RectExtractHard"}], "pending": []}))
+    hard_row = brief._time_rows()[1]
+    assert "ours at 1 update/step 0.90 (2 of 5 seeds >= 0.95)" in hard_row
+    assert "ours at 1 update/step: mujoco, outcome, residual, 32k steps, 1 updates/step" in hard_row
+    assert "learning_partial.json" in hard_row
 
 
 def test_a_study_of_two_collapsed_learners_is_not_a_readme_row():

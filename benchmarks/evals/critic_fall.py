@@ -13,7 +13,7 @@ loss at both, and the final evaluation. Nothing is trained or simulated here.
 
 from __future__ import annotations
 
-from benchmarks.common import EVALS_RESULTS, rel, table
+from benchmarks.common import EVALS_RESULTS, table
 from benchmarks.evals.learning import COLLAPSE_MARGIN, _f
 from peghole_mjx.training.logs import read_metrics
 
@@ -73,7 +73,7 @@ def fall_table() -> str:
     lines = [
         "| run | seed | best eval success (env steps) | critic loss there | first fall below "
         "best - 0.05 (env steps) | critic loss there | last eval success | critic loss at "
-        "the end | metrics |",
+        "the end | run folder (under benchmarks/results/evals) |",
         "|---|---|---|---|---|---|---|---|---|",
     ]
     for label, folder in RUN_GROUPS:
@@ -92,6 +92,6 @@ def fall_table() -> str:
                 f"| {label} | {path.parent.name[5:]} | {f['best']:.2f} "
                 f"({f['best_step'] / 1e3:.1f}k) | {_g(f['loss_at_best'], '.3g')} | {where} | "
                 f"{_g(f['loss_at_fall'], '.3g')} | {f['last']:.2f} | "
-                f"{_g(f['last_loss'], '.3g')} | [`metrics.csv`]({rel(path)}) |"
+                f"{_g(f['last_loss'], '.3g')} | `{path.parent.relative_to(EVALS_RESULTS)}` |"
             )
     return "\n".join(lines)
