@@ -132,9 +132,13 @@ def test_tampered_policy_is_refused_on_load_before_any_env_is_built(
 
 
 def test_committed_policies_pass_the_load_checks():
+    """Every committed policy loads (its normaliser agrees with its flag, checked by the loader)
+    and its network records the normaliser setting it was trained with (rect and dual with
+    one, rect_hard and dual_hard without: the one-update-per-env-step protocol)."""
     for name in PRETRAINED:
         bundle = load_policy(name)
-        assert bundle.meta["network"]["normalize_observations"] is True
+        flag = bundle.meta["network"]["normalize_observations"]
+        assert flag is bundle.meta["train_config"]["normalize_observations"], name
 
 
 # ---------------------------------------------------------------------- 3. all paths first
