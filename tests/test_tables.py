@@ -235,7 +235,7 @@ def test_the_readme_learning_rows_come_from_the_stacks_files_and_name_what_diffe
     assert "seed stack: pybullet, thesis, plain, 32k steps, 0.02 updates/step" in time_row
     assert "ours: mujoco, outcome, residual, 100k steps, 0.5 updates/step" in time_row
     assert "IQR ours [1, 1] s; seed stack [20, 40] s" in time_row
-    assert "not run: SB3 on our adapter" in time_row
+    assert "not run: SB3 SAC" in time_row
     assert "1 update/step" not in time_row  # RectExtract's row: the residual protocol's stacks
     assert "| pending |" in hard_row  # neither file has RectExtractHard
     # a --finished-only report: its finished task is an entry, its unfinished one is named
@@ -257,6 +257,15 @@ def test_the_readme_learning_rows_come_from_the_stacks_files_and_name_what_diffe
     assert "ours at 1 update/step 0.90 (2 of 5 seeds >= 0.95)" in hard_row
     assert "ours at 1 update/step: mujoco, outcome, residual, 32k steps, 1 updates/step" in hard_row
     assert "learning_partial.json" in hard_row
+    # beyond budget and updates per step, the learner settings that differ are named
+    fast = {"num_timesteps": 32_000, "learning_rate": 3e-4, "env_overrides": {"action.residual": 1}}
+    utd1 = utd1 | {"task": "RectExtractHard", "config": fast}
+    partial.write_text(json.dumps({"tasks": [utd1], "pending": []}))
+    hard["config"] |= {"learning_rate": 1e-4}
+    files["ours"].write_text(json.dumps({"tasks": [ours, hard]}))
+    hard_row = brief._time_rows()[1]
+    assert "; ours at 1 update/step vs ours: learning_rate 0.0003 vs 0.0001;" in hard_row
+    assert "num_timesteps 32000 vs" not in hard_row  # the budget is named once, beside each
 
 
 def test_a_study_of_two_collapsed_learners_is_not_a_readme_row():

@@ -40,6 +40,7 @@ from benchmarks.baselines.time_to_success import HARD_ENV
 from benchmarks.common import (
     EVALS_RESULTS,
     STUDIES_RESULTS,
+    fmt_settings_diff,
     rel,
     settings_diff,
     table,
@@ -438,7 +439,7 @@ STACK_LABELS = {
     "ours": "ours",
     "ours_utd1": "ours at 1 update/step",
     "seed": "seed stack",
-    "sb3": "SB3 on our adapter",
+    "sb3": "SB3 SAC",
 }
 
 
@@ -461,6 +462,17 @@ def stack_tasks() -> dict[str, dict[str, dict]]:
             t["task"]: t | {"file": path} for t in doc["tasks"] if not pending_seeds(doc, t["task"])
         }
     return out
+
+
+def learner_diff(entries: dict[str, dict]) -> str:
+    """``; ours at 1 update/step vs ours: KEY a vs b; ...``: the training settings in which our
+    two protocols' entries of a row differ, beyond the budget and updates per env step that
+    :func:`stack_settings` names (empty unless both are in the row)."""
+    if "ours" not in entries or "ours_utd1" not in entries:
+        return ""
+    ignore = ("seed", "num_timesteps", "grad_updates_per_step")
+    diffs = settings_diff(entries["ours_utd1"]["config"], entries["ours"]["config"], ignore)
+    return f"; {STACK_LABELS['ours_utd1']} vs ours: {fmt_settings_diff(diffs)}"
 
 
 def unfinished_tasks() -> dict[str, set[str]]:
@@ -540,7 +552,7 @@ def _time_rows() -> list[str]:
         not_run = f"; not run: {', '.join(missing)}" if missing else ""
         not_run += f"; not finished: {', '.join(waiting)}" if waiting else ""
         ours, interval = cells(entries)
-        text = f"{ours}; {stack_settings(entries)}{not_run}"
+        text = f"{ours}; {stack_settings(entries)}{learner_diff(entries)}{not_run}"
         out.append(_row(key, text, interval, NO_CLAIM, *(t["file"] for t in entries.values())))
     return out
 
