@@ -14,7 +14,7 @@ loss at both, and the final evaluation. Nothing is trained or simulated here.
 from __future__ import annotations
 
 from benchmarks.common import EVALS_RESULTS, table
-from benchmarks.evals.learning import COLLAPSE_MARGIN, _f
+from benchmarks.evals.learning import COLLAPSE_MARGIN, finite_or_none
 from peghole_mjx.training.logs import read_metrics
 
 _BENCH = EVALS_RESULTS / "learning_residual_cpu-2core"
@@ -40,8 +40,9 @@ def fall(rows: list[dict]) -> dict:
     evaluation), ``fall_step`` (the first later evaluation below ``best - COLLAPSE_MARGIN``,
     None if none), the critic's loss at both (``loss_at_best``, ``loss_at_fall``) and the last
     evaluation's success and loss (``last``, ``last_loss``)."""
+    num = finite_or_none
     evals = [
-        (int(r["step"]), _f(r.get("eval/success_rate")), _f(r.get("loss/critic"))) for r in rows
+        (int(r["step"]), num(r.get("eval/success_rate")), num(r.get("loss/critic"))) for r in rows
     ]
     evals = [e for e in evals if e[1] is not None]
     if not evals:

@@ -153,13 +153,14 @@ def t_ci(x) -> list[float] | None:
 def first_at(rows: list[dict], target: float = TARGET) -> dict | None:
     """The first evaluation row of a ``metrics.csv`` at or above ``target`` success."""
     for r in rows:
-        v = _f(r.get("eval/success_rate"))
+        v = finite_or_none(r.get("eval/success_rate"))
         if v is not None and v >= target:
             return r
     return None
 
 
-def _f(v) -> float | None:
+def finite_or_none(v) -> float | None:
+    """``v`` as a finite float, None if it is empty, not a number or not finite (a CSV cell)."""
     try:
         x = float(v)
     except (TypeError, ValueError):
@@ -286,9 +287,9 @@ def seed_record(run_dir: Path, final: dict[str, Any]) -> dict[str, Any]:
     row per evaluation: ``step``, ``eval/success_rate``, ``train_wall_s``)."""
     rows = read_metrics(run_dir)
     curve = [
-        (int(r["step"]), _f(r.get("eval/success_rate")))
+        (int(r["step"]), finite_or_none(r.get("eval/success_rate")))
         for r in rows
-        if _f(r.get("eval/success_rate")) is not None
+        if finite_or_none(r.get("eval/success_rate")) is not None
     ]
     hit = first_at(rows)
     # the untrained policy's evaluation (env step 0), where the run made one
@@ -304,16 +305,16 @@ def seed_record(run_dir: Path, final: dict[str, Any]) -> dict[str, Any]:
         "curve": curve,
         "best_eval": max((v for _, v in curve), default=0.0),
         "steps_to_95": int(hit["step"]) if hit else None,
-        "clock_to_95_s": _f(hit.get("train_wall_s")) if hit else None,
+        "clock_to_95_s": finite_or_none(hit.get("train_wall_s")) if hit else None,
         "final_success": float(pol["success_rate"]),
         "policy_mean_fz_N": float(pol["mean_fz_N"]),
         "policy_peak_fz_N": float(pol["peak_fz_N"]),
-        "baseline_success": _f(base["success_rate"]),
-        "baseline_mean_fz_N": _f(base["mean_fz_N"]),
-        "baseline_peak_fz_N": _f(base["peak_fz_N"]),
+        "baseline_success": finite_or_none(base["success_rate"]),
+        "baseline_mean_fz_N": finite_or_none(base["mean_fz_N"]),
+        "baseline_peak_fz_N": finite_or_none(base["peak_fz_N"]),
         "final_episodes": int(final["episodes"]),
-        "untrained_success": _f(start.get("eval/success_rate")),
-        "untrained_mean_fz_N": _f(start.get("eval/mean_fz_N")),
+        "untrained_success": finite_or_none(start.get("eval/success_rate")),
+        "untrained_mean_fz_N": finite_or_none(start.get("eval/mean_fz_N")),
     }
 
 
