@@ -249,13 +249,15 @@ def test_the_readme_learning_rows_come_from_the_stacks_files_and_name_what_diffe
     assert "| pending |" in brief._time_rows()[1]  # ours alone: nothing compared
     files["sb3"].write_text(json.dumps({"tasks": [hard]}))
     hard_row = brief._time_rows()[1]
-    assert "not finished: ours at 1 update/step" in hard_row
+    assert "not finished: ours (1 update/step)" in hard_row
     assert "not run: seed stack" in hard_row
     # finished in the partial report: an entry of the row, linked to the report read
     partial.write_text(json.dumps({"tasks": [utd1 | {"task": "RectExtractHard"}], "pending": []}))
     hard_row = brief._time_rows()[1]
-    assert "ours at 1 update/step 0.90 (2 of 5 seeds >= 0.95)" in hard_row
-    assert "ours at 1 update/step: mujoco, outcome, residual, 32k steps, 1 updates/step" in hard_row
+    assert "ours (1 update/step) 0.90 (2 of 5 >= 0.95)" in hard_row
+    # every entry on the same engine, reward and actions: said once
+    assert "all: mujoco, outcome, residual; ours: 100k steps, 0.5 updates/step; " in hard_row
+    assert "ours (1 update/step): 32k steps, 1 updates/step" in hard_row
     assert "learning_partial.json" in hard_row
     # beyond budget and updates per step, the learner settings that differ are named
     fast = {"num_timesteps": 32_000, "learning_rate": 3e-4, "env_overrides": {"action.residual": 1}}
@@ -264,7 +266,7 @@ def test_the_readme_learning_rows_come_from_the_stacks_files_and_name_what_diffe
     hard["config"] |= {"learning_rate": 1e-4}
     files["ours"].write_text(json.dumps({"tasks": [ours, hard]}))
     hard_row = brief._time_rows()[1]
-    assert "; ours at 1 update/step vs ours: learning_rate 0.0003 vs 0.0001;" in hard_row
+    assert "; ours (1 update/step) vs ours: learning_rate 0.0003 vs 0.0001;" in hard_row
     assert "num_timesteps 32000 vs" not in hard_row  # the budget is named once, beside each
 
 

@@ -437,7 +437,7 @@ def _throughput_row() -> str:
 #: stacks and our learner under the one-update-per-env-step protocol
 STACK_LABELS = {
     "ours": "ours",
-    "ours_utd1": "ours at 1 update/step",
+    "ours_utd1": "ours (1 update/step)",
     "seed": "seed stack",
     "sb3": "SB3 SAC",
 }
@@ -486,9 +486,12 @@ def unfinished_tasks() -> dict[str, set[str]]:
 
 
 def stack_settings(entries: dict[str, dict]) -> str:
-    """What the stacks of a row trained on: engine, reward, actions, budget, updates/env step."""
-    return "; ".join(
-        f"{STACK_LABELS[stack]}: {stack_setting(t)}, "
+    """What the stacks of a row trained on: engine, reward, actions (said once, ``all: ...``,
+    when every stack shares them), budget, updates/env step."""
+    shared = {stack_setting(t) for t in entries.values()}
+    head = f"all: {shared.pop()}; " if len(shared) == 1 else ""
+    return head + "; ".join(
+        f"{STACK_LABELS[stack]}: {'' if head else stack_setting(t) + ', '}"
         f"{t['config']['num_timesteps'] / 1e3:g}k steps, {t['updates_per_env_step']:g} updates/step"
         for stack, t in entries.items()
     )
@@ -522,7 +525,7 @@ def _final_row(entries: dict[str, dict]) -> tuple[str, str]:
         n = len(t["seeds"])
         parts.append(
             f"{STACK_LABELS[stack]} {t['final_success_iqm']:.2f} "
-            f"({round(t['share_at_95'] * n)} of {n} seeds >= 0.95)"
+            f"({round(t['share_at_95'] * n)} of {n} >= 0.95)"
         )
         cis.append(f"{STACK_LABELS[stack]} {_ci(t['final_success_ci95'], '.2f', '')}")
     return f"IQM {', '.join(parts)}", "; ".join(cis)
