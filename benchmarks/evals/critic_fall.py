@@ -18,7 +18,7 @@ from benchmarks.evals.learning import COLLAPSE_MARGIN, finite_or_none
 from peghole_mjx.training.logs import read_metrics
 
 _BENCH = EVALS_RESULTS / "learning_residual_cpu-2core"
-#: the run folders read, as (label, folder holding seed_* runs): the two tuning probes
+#: the run folders read, as (label, folder holding seed_* runs): the tuning probes
 #: (RectExtractHard) and the one-update-per-env-step benchmark's two Hard tasks
 _UTD1 = EVALS_RESULTS / "learning_utd1_cpu-2core" / "runs"
 RUN_GROUPS = (
@@ -30,6 +30,7 @@ RUN_GROUPS = (
         "probe, layernorm critic: RectExtractHard",
         _BENCH / "probe_layernorm" / "runs" / "RectExtractHard",
     ),
+    ("probe, tau 0.001: RectExtractHard", _BENCH / "probe_tau" / "runs" / "RectExtractHard"),
     ("1 update/step protocol: RectExtractHard", _UTD1 / "RectExtractHard"),
     ("1 update/step protocol: DualExtractHard", _UTD1 / "DualExtractHard"),
 )
