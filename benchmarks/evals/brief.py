@@ -51,7 +51,6 @@ from benchmarks.evals.learning import (
     UTD1_FILE,
     censored_median_iqr,
     censored_text,
-    pending_seeds,
     report_file,
     stack_setting,
 )
@@ -448,20 +447,23 @@ def row_files() -> dict[str, Path]:
     return {**STACK_FILES, "ours_utd1": UTD1_FILE}
 
 
-def stack_tasks() -> dict[str, dict[str, dict]]:
-    """Each entry's finished tasks (all seeds done) in its learning-benchmark report (a
-    ``--finished-only`` report's tasks with pending seeds, and an entry with no report, are
-    absent)."""
-    out = {}
+def stack_tasks() -> tuple[dict[str, dict[str, dict]], dict[str, set[str]]]:
+    """From each entry's learning-benchmark report, read once: its finished tasks (all seeds
+    done; each entry carries the ``file`` it came from) and the tasks a ``--finished-only``
+    report names with pending seeds. An entry with no report is absent from both."""
+    done, unfinished = {}, {}
     for stack, declared in row_files().items():
         path = report_file(declared)
         if path is None:
             continue
         doc = json.loads(path.read_text())
-        out[stack] = {
-            t["task"]: t | {"file": path} for t in doc["tasks"] if not pending_seeds(doc, t["task"])
+        unfinished[stack] = {p["task"] for p in doc.get("pending", [])}
+        done[stack] = {
+            t["task"]: t | {"file": path}
+            for t in doc["tasks"]
+            if t["task"] not in unfinished[stack]
         }
-    return out
+    return done, unfinished
 
 
 def learner_diff(entries: dict[str, dict]) -> str:
@@ -473,16 +475,6 @@ def learner_diff(entries: dict[str, dict]) -> str:
     ignore = ("seed", "num_timesteps", "grad_updates_per_step")
     diffs = settings_diff(entries["ours_utd1"]["config"], entries["ours"]["config"], ignore)
     return f"; {STACK_LABELS['ours_utd1']} vs ours: {fmt_settings_diff(diffs)}"
-
-
-def unfinished_tasks() -> dict[str, set[str]]:
-    """Each entry's tasks that a ``--finished-only`` report names with pending seeds."""
-    out = {}
-    for stack, declared in row_files().items():
-        path = report_file(declared)
-        if path is not None:
-            out[stack] = {p["task"] for p in json.loads(path.read_text()).get("pending", [])}
-    return out
 
 
 def stack_settings(entries: dict[str, dict]) -> str:
@@ -534,7 +526,7 @@ def _final_row(entries: dict[str, dict]) -> tuple[str, str]:
 def _time_rows() -> list[str]:
     """RectExtract's clock to 95 % and RectExtractHard's final success, the stacks of the
     learning benchmark (5 seeds each, residual protocol) side by side."""
-    done, unfinished = stack_tasks(), unfinished_tasks()
+    done, unfinished = stack_tasks()
     out = []
     # RectExtract's clock row compares the residual protocol's three stacks (every one of them
     # at 95 % there, two before any update); RectExtractHard's final-success row adds our
@@ -550,8 +542,11 @@ def _time_rows() -> list[str]:
             out.append(_pending(key, *STACK_FILES.values()))
             continue
         waiting = [STACK_LABELS[s] for s in labels if task in unfinished.get(s, ())]
-        missing = [STACK_LABELS[s] for s in labels if s not in entries]
-        missing = [m for m in missing if m not in waiting]
+        missing = [
+            STACK_LABELS[s]
+            for s in labels
+            if s not in entries and task not in unfinished.get(s, ())
+        ]
         not_run = f"; not run: {', '.join(missing)}" if missing else ""
         not_run += f"; not finished: {', '.join(waiting)}" if waiting else ""
         ours, interval = cells(entries)
