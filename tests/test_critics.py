@@ -90,3 +90,56 @@ def test_unknown_critic_is_refused():
         load_train_config("RectExtract", "quick", {"critic": "transformer"})
     with pytest.raises(UserInputError, match="critic must be one of"):
         make_q_network("transformer", OBS, ACT)
+
+
+def _one_update(cfg_overrides: dict, log_alpha: float):
+    """The critics' parameters after one SGD step of a fresh learner (seed 0, fixed batch) whose
+    temperature is ``exp(log_alpha)``."""
+    from brax.training.types import Transition
+
+    from peghole_mjx.training.sac import AXIS
+
+    env = envs.load("RectExtract", config_overrides={"engine": "mujoco"})
+    cfg = load_train_config("RectExtract", "quick", {"env.engine": "mujoco", **cfg_overrides})
+    trainer = SACTrainer(env, cfg, single_device=True)
+    ts = trainer.learner_state(jax.random.PRNGKey(0))
+    ts = ts.replace(log_alpha=jnp.asarray(log_alpha, jnp.float32))
+    rng = np.random.default_rng(1)
+    n, obs, act = 16, trainer.obs_size, trainer.act_size
+    trans = Transition(
+        observation=jnp.asarray(rng.normal(size=(n, obs)), jnp.float32),
+        action=jnp.asarray(rng.uniform(-1, 1, size=(n, act)), jnp.float32),
+        reward=jnp.asarray(rng.normal(size=n), jnp.float32),
+        discount=jnp.ones(n),
+        next_observation=jnp.asarray(rng.normal(size=(n, obs)), jnp.float32),
+        extras={"state_extras": {"truncation": jnp.zeros(n)}, "policy_extras": {}},
+    )
+    step = jax.vmap(
+        lambda t, tr: trainer._sgd_step((t, jax.random.PRNGKey(2)), tr)[0][0], axis_name=AXIS
+    )
+    out = step(*(jax.tree.map(lambda x: jnp.asarray(x)[None], t) for t in (ts, trans)))
+    return out.q_params
+
+
+@pytest.mark.parametrize("backup", [True, False])
+def test_entropy_backup_decides_whether_alpha_reaches_the_critics(backup):
+    """With ``entropy_backup`` false the critics' update does not depend on the temperature
+    (their target is the task reward alone); with Brax's target (true) it does."""
+    low, high = (_one_update({"entropy_backup": backup}, la) for la in (-5.0, 2.0))
+    diff = max(
+        float(jnp.abs(a - b).max()) for a, b in zip(jax.tree.leaves(low), jax.tree.leaves(high))
+    )
+    assert (diff > 1e-6) == backup, diff
+
+
+def test_linear_lr_schedule_falls_to_zero_at_the_last_update():
+    from peghole_mjx.training.config import learning_rate
+
+    cfg = load_train_config("RectExtract", "quick", {"lr_schedule": "linear"})
+    updates = cfg.num_timesteps // cfg.num_envs * cfg.grad_updates_per_step
+    lr = learning_rate(cfg)
+    assert float(lr(0)) == pytest.approx(cfg.learning_rate)
+    assert float(lr(updates // 2)) == pytest.approx(cfg.learning_rate / 2, rel=1e-3)
+    assert float(lr(updates)) == 0.0 and float(lr(2 * updates)) == 0.0
+    const = load_train_config("RectExtract", "quick")
+    assert learning_rate(const) == const.learning_rate

@@ -496,6 +496,8 @@ def test_env_overrides_are_checked_before_any_work(capsys, override, needle):
         ("seed", 2**70),
         ("discounting", 1.0),
         ("normalize_observations", "yes"),
+        ("lr_schedule", "cosine"),
+        ("entropy_backup", "no"),
     ],
 )
 def test_training_config_rejects_nonsense(key, value):

@@ -22,6 +22,18 @@ Keys, and the choices made where Brax's defaults differ from the thesis (stack_n
   :mod:`peghole_mjx.envs.reward`); under the thesis's reward 0.99 as in the thesis. Brax's
   default 0.9 would shorten the horizon to about 10 steps (0.2 s), far shorter than an
   extraction.
+* ``lr_schedule``: ``constant`` (the default) or ``linear``: the actor's and critics' learning
+  rates fall linearly from ``learning_rate`` to zero over the run's gradient updates
+  (``num_timesteps / num_envs * grad_updates_per_step``; a run extended on resume follows the
+  longer line from where it stands). The temperature's rate stays 3e-4.
+* ``entropy_backup``: true (Brax's SAC, Haarnoja et al. 2018): the critics' target carries the
+  next state's entropy bonus ``-alpha log pi``; false: the target is the task reward alone
+  (the entropy still shapes the actor and the temperature), as jaxrl's ``backup_entropy``.
+  Why it matters here: under the ``outcome`` reward a step costs 0.05-0.1 while ``alpha H``
+  at the target entropy is ``-alpha dim(A) / 2`` per step, as large at alpha 0.02 and 10-30x
+  larger at the 0.2-0.6 the learned temperature reached on DualExtractHard
+  (docs/research/learner_settings.md), so a backed-up entropy adds a time cost that outweighs
+  the reward's force cost and changes the ranking of outcomes the reward was built for.
 * ``tau``: target-critic Polyak rate 0.005; ``reward_scaling``: 1 (the eq 4.4 terms are
   already of order one).
 * ``alpha``: entropy temperature, ``"auto"`` (learned with Brax's target entropy -dim(A)/2)
@@ -54,8 +66,11 @@ from __future__ import annotations
 
 import json
 from dataclasses import MISSING, asdict, dataclass, field, fields
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any
+
+import optax
 
 from peghole_mjx import envs
 from peghole_mjx.core.errors import CorruptFileError, UserInputError
@@ -67,6 +82,8 @@ _PKG_CONFIGS = Path(__file__).resolve().parents[1] / "_train_configs"
 _REPO_CONFIGS = Path(__file__).resolve().parents[2] / "train" / "configs"
 CONFIG_DIR = _PKG_CONFIGS if _PKG_CONFIGS.is_dir() else _REPO_CONFIGS
 PROFILES = ("full", "cpu", "quick")
+#: the learning-rate schedules of the actor and critics (``TrainConfig.lr_schedule``)
+LR_SCHEDULES = ("constant", "linear")
 #: env config entries that training sets unless a run says otherwise (the env config's own
 #: defaults apply to envs built outside training): the compliance strategy on, RL + CS, and
 #: the thesis's reward, eq (4.4), the one that learns within the ``cpu`` budgets; the
@@ -102,6 +119,8 @@ class TrainConfig:
     max_replay_size: int
     min_replay_size: int
     learning_rate: float = 3e-4
+    lr_schedule: str = "constant"
+    entropy_backup: bool = True
     discounting: float = 0.99
     tau: float = 0.005
     reward_scaling: float = 1.0
@@ -173,6 +192,14 @@ class TrainConfig:
             f"normalize_observations must be true or false, got {self.normalize_observations!r}",
         )
         need(
+            self.lr_schedule in LR_SCHEDULES,
+            f"lr_schedule must be one of {list(LR_SCHEDULES)}, got {self.lr_schedule!r}",
+        )
+        need(
+            isinstance(self.entropy_backup, bool),
+            f"entropy_backup must be true or false, got {self.entropy_backup!r}",
+        )
+        need(
             self.critic in CRITICS,
             f"critic must be one of {list(CRITICS)}, got {self.critic!r}",
         )
@@ -200,6 +227,16 @@ class TrainConfig:
             self.batch_size <= self.max_replay_size,
             f"batch_size ({self.batch_size}) must be <= max_replay_size ({self.max_replay_size})",
         )
+
+
+def learning_rate(cfg: TrainConfig) -> float | Callable[[Any], Any]:
+    """The actor's and critics' learning rate: ``cfg.learning_rate`` (``lr_schedule``
+    ``constant``), or an optax schedule falling linearly to zero at the run's last gradient
+    update (``linear``)."""
+    if cfg.lr_schedule == "constant":
+        return cfg.learning_rate
+    updates = max(1, cfg.num_timesteps // cfg.num_envs * cfg.grad_updates_per_step)
+    return optax.linear_schedule(cfg.learning_rate, 0.0, updates)
 
 
 def _label(name: str) -> str:

@@ -16,6 +16,9 @@ directly:
   :meth:`PegHoleEnv.reset` with a new key (tested).
 * **Fixed or learned temperature.** Brax always learns alpha (from 1); the thesis fixed it at
   0.2. ``alpha`` may be ``"auto"`` (learned, from ``alpha_init``) or a number.
+* **Entropy in the critics' target, and the learning-rate schedule** (``entropy_backup``,
+  ``lr_schedule``, :mod:`peghole_mjx.training.config`): Brax's critic loss with alpha 0 is a
+  target without the entropy bonus; the actor and critics take an optax schedule.
 * **Episode statistics during training** (force, |F_xy|, discounted return of every finished
   training episode) for the thesis's Figs 4.5-4.7.
 
@@ -63,7 +66,7 @@ from peghole_mjx.envs.extraction import PegHoleEnv
 from peghole_mjx.envs.metrics import accumulate_return, episode_totals, zero_returns
 from peghole_mjx.policies import make_networks
 from peghole_mjx.sim.engines import batch_reset, select_worlds
-from peghole_mjx.training.config import TrainConfig, check_discount
+from peghole_mjx.training.config import TrainConfig, check_discount, learning_rate
 from peghole_mjx.training.critics import with_critic
 
 AXIS = "i"
@@ -160,8 +163,8 @@ class SACTrainer:
         obs_size, act_size = self.network["observation_size"], self.network["action_size"]
         self.obs_size, self.act_size = obs_size, act_size
         self.fixed_alpha = cfg.alpha != "auto"
-        self.policy_opt = optax.adam(cfg.learning_rate)
-        self.q_opt = optax.adam(cfg.learning_rate)
+        self.policy_opt = optax.adam(learning_rate(cfg))
+        self.q_opt = optax.adam(learning_rate(cfg))
         self.alpha_opt = optax.adam(3e-4)
         dummy_obs = jnp.zeros((obs_size,))
         self.buffer = replay_buffers.UniformSamplingQueue(
@@ -323,12 +326,15 @@ class SACTrainer:
                 optimizer_state=ts.alpha_opt,
             )
         alpha = jnp.exp(ts.log_alpha)
+        # Brax's critic target is r + gamma (min Q' - alpha log pi'): alpha 0 drops the entropy
+        # bonus from it (``entropy_backup`` false), the actor's loss keeps alpha
+        critic_alpha = alpha if self.cfg.entropy_backup else jnp.zeros_like(alpha)
         critic_loss, q_params, q_opt = self._critic_update(
             ts.q_params,
             ts.policy_params,
             ts.normalizer,
             ts.target_q_params,
-            alpha,
+            critic_alpha,
             transitions,
             k_critic,
             optimizer_state=ts.q_opt,
