@@ -220,54 +220,45 @@ def test_the_readme_learning_rows_come_from_the_stacks_files_and_name_what_diffe
 ):
     files = {s: tmp_path / f"learning_{s}.json" for s in ("ours", "seed", "sb3")}
     monkeypatch.setattr(brief, "STACK_FILES", files)
-    monkeypatch.setattr(brief, "UTD1_FILE", tmp_path / "utd1" / "learning.json")
+    ours_file = tmp_path / "taskq" / "learning.json"
+    monkeypatch.setattr(brief, "TASKQ_FILE", ours_file)
     rows = brief._time_rows()
     assert all("| pending |" in r for r in rows)  # no stack file: nothing compared
-    ours = _stack_entry("RectExtract", "mujoco", "outcome", True, 100_000, 0.5, [1.0] * 5, 5)
+    ours_file.parent.mkdir()
+    ours = _stack_entry("RectExtract", "mujoco", "outcome", True, 32_000, 1.0, [1.0] * 5, 5)
     seed = _stack_entry("RectExtract", "pybullet", "thesis", None, 32_000, 0.02,
                         [10.0, 20.0, 30.0, None, 40.0])  # fmt: skip
-    files["ours"].write_text(json.dumps({"tasks": [ours]}))
+    ours_file.write_text(json.dumps({"tasks": [ours]}))
+    files["ours"].write_text(json.dumps({"tasks": [ours | {"seeds": [9] * 5}]}))  # not read
     files["seed"].write_text(json.dumps({"tasks": [seed]}))
     time_row, hard_row = brief._time_rows()
     assert "ours 1 s (5 of 5 at 95 % untrained)" in time_row
     assert "seed stack 30 s (4 of 5 reached)" in time_row
     assert "ours / seed stack 0.033" in time_row
     assert "seed stack: pybullet, thesis, plain, 32k steps, 0.02 updates/step" in time_row
-    assert "ours: mujoco, outcome, residual, 100k steps, 0.5 updates/step" in time_row
+    assert "ours: mujoco, outcome, residual, 32k steps, 1 updates/step" in time_row
     assert "IQR ours [1, 1] s; seed stack [20, 40] s" in time_row
     assert "not run: SB3 SAC" in time_row
-    assert "1 update/step" not in time_row  # RectExtract's row: the residual protocol's stacks
+    assert "learning_ours.json" not in time_row  # ours is read from the published protocol's
     assert "| pending |" in hard_row  # neither file has RectExtractHard
-    # a --finished-only report: its finished task is an entry, its unfinished one is named
-    partial = tmp_path / "utd1" / "learning_partial.json"
-    partial.parent.mkdir()
-    utd1 = _stack_entry("RectExtract", "mujoco", "outcome", True, 32_000, 1.0, [2.0] * 5)
-    pending = [{"task": "RectExtractHard", "seed": 304}]
-    hard = _stack_entry("RectExtractHard", "mujoco", "outcome", True, 100_000, 0.5, [None] * 5)
-    files["ours"].write_text(json.dumps({"tasks": [ours, hard]}))
-    partial.write_text(json.dumps({"tasks": [utd1, hard | {"seeds": [300]}], "pending": pending}))
-    assert "| pending |" in brief._time_rows()[1]  # ours alone: nothing compared
+    # a --finished-only report of ours: its finished task is an entry, its unfinished one named
+    partial = ours_file.with_name("learning_partial.json")
+    ours_file.unlink()
+    pending = [{"task": "RectExtractHard", "seed": 404}]
+    hard = _stack_entry("RectExtractHard", "mujoco", "outcome", True, 32_000, 1.0, [None] * 5)
+    partial.write_text(json.dumps({"tasks": [ours, hard | {"seeds": [400]}], "pending": pending}))
+    assert "| pending |" in brief._time_rows()[1]  # no other stack: nothing compared
     files["sb3"].write_text(json.dumps({"tasks": [hard]}))
+    assert "| pending |" in brief._time_rows()[1]  # ours unfinished: nothing compared
+    partial.write_text(json.dumps({"tasks": [ours, hard], "pending": []}))
     hard_row = brief._time_rows()[1]
-    assert "not finished: ours (1 update/step)" in hard_row
+    assert "IQM ours 0.90 (2 of 5 >= 0.95), SB3 SAC 0.90 (2 of 5 >= 0.95)" in hard_row
     assert "not run: seed stack" in hard_row
-    # finished in the partial report: an entry of the row, linked to the report read
-    partial.write_text(json.dumps({"tasks": [utd1 | {"task": "RectExtractHard"}], "pending": []}))
-    hard_row = brief._time_rows()[1]
-    assert "ours (1 update/step) 0.90 (2 of 5 >= 0.95)" in hard_row
     # every entry on the same engine, reward and actions: said once
-    assert "all: mujoco, outcome, residual; ours: 100k steps, 0.5 updates/step; " in hard_row
-    assert "ours (1 update/step): 32k steps, 1 updates/step" in hard_row
+    assert "all: mujoco, outcome, residual; ours: 32k steps, 1 updates/step; " in hard_row
     assert "learning_partial.json" in hard_row
-    # beyond budget and updates per step, the learner settings that differ are named
-    fast = {"num_timesteps": 32_000, "learning_rate": 3e-4, "env_overrides": {"action.residual": 1}}
-    utd1 = utd1 | {"task": "RectExtractHard", "config": fast}
-    partial.write_text(json.dumps({"tasks": [utd1], "pending": []}))
-    hard["config"] |= {"learning_rate": 1e-4}
-    files["ours"].write_text(json.dumps({"tasks": [ours, hard]}))
-    hard_row = brief._time_rows()[1]
-    assert "; ours (1 update/step) vs ours: learning_rate 0.0003 vs 0.0001;" in hard_row
-    assert "num_timesteps 32000 vs" not in hard_row  # the budget is named once, beside each
+    partial.write_text(json.dumps({"tasks": [ours, hard], "pending": pending}))
+    assert "| pending |" in brief._time_rows()[1]
 
 
 def test_a_study_of_two_collapsed_learners_is_not_a_readme_row():

@@ -40,7 +40,6 @@ from benchmarks.baselines.time_to_success import HARD_ENV
 from benchmarks.common import (
     EVALS_RESULTS,
     STUDIES_RESULTS,
-    fmt_settings_diff,
     rel,
     settings_diff,
     table,
@@ -48,7 +47,7 @@ from benchmarks.common import (
 from benchmarks.evals.experiments import ordered
 from benchmarks.evals.learning import (
     STACK_FILES,
-    UTD1_FILE,
+    TASKQ_FILE,
     censored_median_iqr,
     censored_text,
     report_file,
@@ -432,19 +431,16 @@ def _throughput_row() -> str:
     return _row("throughput", ours, "- (one run)", NO_CLAIM, ENGINES_CSV)
 
 
-#: how the README names each row entry of the learning benchmark: the residual protocol's three
-#: stacks and our learner under the one-update-per-env-step protocol
-STACK_LABELS = {
-    "ours": "ours",
-    "ours_utd1": "ours (1 update/step)",
-    "seed": "seed stack",
-    "sb3": "SB3 SAC",
-}
+#: how the README names each row entry of the learning benchmark: our learner under the protocol
+#: the published policies come from, and the residual protocol's two other stacks
+STACK_LABELS = {"ours": "ours", "seed": "seed stack", "sb3": "SB3 SAC"}
 
 
 def row_files() -> dict[str, Path]:
-    """The result file of each entry of :data:`STACK_LABELS`."""
-    return {**STACK_FILES, "ours_utd1": UTD1_FILE}
+    """The result file of each entry of :data:`STACK_LABELS`: ours from the task-reward-critics
+    protocol (the published policies' protocol), the other stacks from the residual protocol's
+    folder."""
+    return {"ours": TASKQ_FILE, "seed": STACK_FILES["seed"], "sb3": STACK_FILES["sb3"]}
 
 
 def stack_tasks() -> tuple[dict[str, dict[str, dict]], dict[str, set[str]]]:
@@ -464,17 +460,6 @@ def stack_tasks() -> tuple[dict[str, dict[str, dict]], dict[str, set[str]]]:
             if t["task"] not in unfinished[stack]
         }
     return done, unfinished
-
-
-def learner_diff(entries: dict[str, dict]) -> str:
-    """``; ours at 1 update/step vs ours: KEY a vs b; ...``: the training settings in which our
-    two protocols' entries of a row differ, beyond the budget and updates per env step that
-    :func:`stack_settings` names (empty unless both are in the row)."""
-    if "ours" not in entries or "ours_utd1" not in entries:
-        return ""
-    ignore = ("seed", "num_timesteps", "grad_updates_per_step")
-    diffs = settings_diff(entries["ours_utd1"]["config"], entries["ours"]["config"], ignore)
-    return f"; {STACK_LABELS['ours_utd1']} vs ours: {fmt_settings_diff(diffs)}"
 
 
 def stack_settings(entries: dict[str, dict]) -> str:
@@ -525,21 +510,18 @@ def _final_row(entries: dict[str, dict]) -> tuple[str, str]:
 
 def _time_rows() -> list[str]:
     """RectExtract's clock to 95 % and RectExtractHard's final success, the stacks of the
-    learning benchmark (5 seeds each, residual protocol) side by side."""
+    learning benchmark (5 seeds each; ours under the published policies' protocol) side by
+    side."""
     done, unfinished = stack_tasks()
     out = []
-    # RectExtract's clock row compares the residual protocol's three stacks (every one of them
-    # at 95 % there, two before any update); RectExtractHard's final-success row adds our
-    # learner under the one-update-per-env-step protocol
-    residual = ("ours", "seed", "sb3")
-    rows = (
-        ("time", "RectExtract", _clock_row, residual),
-        ("time_hard", HARD_ENV, _final_row, tuple(STACK_LABELS)),
-    )
-    for key, task, cells, labels in rows:
+    labels = tuple(STACK_LABELS)
+    for key, task, cells in (
+        ("time", "RectExtract", _clock_row),
+        ("time_hard", HARD_ENV, _final_row),
+    ):
         entries = {s: done[s][task] for s in labels if task in done.get(s, {})}
         if "ours" not in entries or len(entries) < 2:
-            out.append(_pending(key, *STACK_FILES.values()))
+            out.append(_pending(key, *row_files().values()))
             continue
         waiting = [STACK_LABELS[s] for s in labels if task in unfinished.get(s, ())]
         missing = [
@@ -550,7 +532,7 @@ def _time_rows() -> list[str]:
         not_run = f"; not run: {', '.join(missing)}" if missing else ""
         not_run += f"; not finished: {', '.join(waiting)}" if waiting else ""
         ours, interval = cells(entries)
-        text = f"{ours}; {stack_settings(entries)}{learner_diff(entries)}{not_run}"
+        text = f"{ours}; {stack_settings(entries)}{not_run}"
         out.append(_row(key, text, interval, NO_CLAIM, *(t["file"] for t in entries.values())))
     return out
 

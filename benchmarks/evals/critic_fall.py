@@ -19,8 +19,10 @@ from peghole_mjx.training.logs import read_metrics
 
 _BENCH = EVALS_RESULTS / "learning_residual_cpu-2core"
 #: the run folders read, as (label, folder holding seed_* runs): the tuning probes
-#: (RectExtractHard) and the one-update-per-env-step benchmark's two Hard tasks
+#: (RectExtractHard) and the one-update-per-env-step and task-reward-critics benchmarks' Hard
+#: tasks
 _UTD1 = EVALS_RESULTS / "learning_utd1_cpu-2core" / "runs"
+_TASKQ = EVALS_RESULTS / "learning_taskq_cpu-2core" / "runs"
 RUN_GROUPS = (
     (
         "probe, mlp critic: RectExtractHard",
@@ -33,6 +35,8 @@ RUN_GROUPS = (
     ("probe, tau 0.001: RectExtractHard", _BENCH / "probe_tau" / "runs" / "RectExtractHard"),
     ("1 update/step protocol: RectExtractHard", _UTD1 / "RectExtractHard"),
     ("1 update/step protocol: DualExtractHard", _UTD1 / "DualExtractHard"),
+    ("task-reward critics protocol: RectExtractHard", _TASKQ / "RectExtractHard"),
+    ("task-reward critics protocol: DualExtractHard", _TASKQ / "DualExtractHard"),
 )
 
 

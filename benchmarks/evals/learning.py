@@ -406,6 +406,10 @@ def _ci_text(ci: list[float] | None, fmt: str) -> str:
 #: the one-update-per-env-step protocol's result file (docs/research/learner_settings.md): our
 #: learner with SB3's learner settings on fresh seeds, beside the residual protocol's stacks
 UTD1_FILE = EVALS_RESULTS / "learning_utd1_cpu-2core" / "learning.json"
+#: the task-reward-critics protocol's result file (docs/research/learner_settings.md): the
+#: one-update-per-env-step learner with critics whose target has no entropy bonus and learning
+#: rates falling to zero, on fresh seeds
+TASKQ_FILE = EVALS_RESULTS / "learning_taskq_cpu-2core" / "learning.json"
 
 #: the residual protocol's result file of each stack (one ``--out``: the stacks sit together)
 STACK_FILES = {
@@ -489,6 +493,12 @@ def residual_table() -> str:
 def utd1_table() -> str:
     """The one-update-per-env-step benchmark per task, from its result file."""
     return benchmark_table((UTD1_FILE,))
+
+
+@table("learning_taskq")
+def taskq_table() -> str:
+    """The task-reward-critics benchmark per task, from its result file."""
+    return benchmark_table((TASKQ_FILE,))
 
 
 def report_file(path: Path) -> Path | None:
