@@ -127,7 +127,8 @@ def test_entropy_backup_decides_whether_alpha_reaches_the_critics(backup):
     (their target is the task reward alone); with Brax's target (true) it does."""
     low, high = (_one_update({"entropy_backup": backup}, la) for la in (-5.0, 2.0))
     diff = max(
-        float(jnp.abs(a - b).max()) for a, b in zip(jax.tree.leaves(low), jax.tree.leaves(high))
+        float(jnp.abs(a - b).max())
+        for a, b in zip(jax.tree.leaves(low), jax.tree.leaves(high), strict=True)
     )
     assert (diff > 1e-6) == backup, diff
 
@@ -143,3 +144,68 @@ def test_linear_lr_schedule_falls_to_zero_at_the_last_update():
     assert float(lr(updates)) == 0.0 and float(lr(2 * updates)) == 0.0
     const = load_train_config("RectExtract", "quick")
     assert learning_rate(const) == const.learning_rate
+
+
+def test_outcome_return_bounds_hold_the_rewards_extremes():
+    """The bounds of envs/reward.py's return_bounds against the reward's own extremes: a full
+    pull with no cost reaches w_progress at most; the worst stay then failure is above lo."""
+    from peghole_mjx.envs.reward import failure_cost, return_bounds
+
+    rc = envs.load("RectExtract", config_overrides={"reward_config.kind": "outcome"})
+    rc = rc.config.reward_config
+    lo, hi = return_bounds(rc)
+    assert hi == rc.w_progress
+    c_max = rc.time_cost * (1 + rc.w_contact)
+    worst = -c_max / (1 - rc.discount) - failure_cost(rc) - rc.w_progress
+    assert lo <= worst < hi
+    with pytest.raises(ValueError, match="outcome"):
+        thesis = envs.load("RectExtract", config_overrides={"reward_config.kind": "thesis"})
+        return_bounds(thesis.config.reward_config)
+
+
+def test_clipped_target_critic_loss_is_braxs_inside_the_bounds_and_clips_outside():
+    """Within wide bounds the clipped loss equals Brax's, value for value; with a ceiling
+    below every target the critics regress on the ceiling."""
+    from brax.training.agents.sac import losses as sac_losses
+    from brax.training.types import Transition
+
+    from peghole_mjx.training.losses import make_clipped_critic_loss
+
+    env = envs.load("RectExtract", config_overrides={"engine": "mujoco"})
+    cfg = load_train_config("RectExtract", "quick", {"env.engine": "mujoco"})
+    trainer = SACTrainer(env, cfg, single_device=True)
+    ts = trainer.learner_state(jax.random.PRNGKey(0))
+    rng = np.random.default_rng(3)
+    n, obs, act = 32, trainer.obs_size, trainer.act_size
+    trans = Transition(
+        observation=jnp.asarray(rng.normal(size=(n, obs)), jnp.float32),
+        action=jnp.asarray(rng.uniform(-1, 1, size=(n, act)), jnp.float32),
+        reward=jnp.asarray(rng.normal(size=n), jnp.float32),
+        discount=jnp.ones(n),
+        next_observation=jnp.asarray(rng.normal(size=(n, obs)), jnp.float32),
+        extras={"state_extras": {"truncation": jnp.zeros(n)}, "policy_extras": {}},
+    )
+    args = (ts.q_params, ts.policy_params, ts.normalizer, ts.target_q_params, 0.1, trans)
+    key = jax.random.PRNGKey(4)
+    _, brax_loss, _ = sac_losses.make_losses(trainer.nets, 1.0, cfg.discounting, act)
+    wide = make_clipped_critic_loss(trainer.nets, 1.0, cfg.discounting, (-1e6, 1e6))
+    assert float(wide(*args, key)) == pytest.approx(float(brax_loss(*args, key)), rel=1e-6)
+    ceiling = -50.0  # below every target here (rewards ~N(0, 1), a fresh critic near 0)
+    low = make_clipped_critic_loss(trainer.nets, 1.0, cfg.discounting, (-1e6, ceiling))
+    q = trainer.nets.q_network.apply(ts.normalizer, ts.q_params, trans.observation, trans.action)
+    assert float(low(*args, key)) == pytest.approx(float(0.5 * jnp.mean((q - ceiling) ** 2)))
+    with pytest.raises(ValueError, match="increasing"):
+        make_clipped_critic_loss(trainer.nets, 1.0, cfg.discounting, (1.0, -1.0))
+
+
+def test_q_target_clip_is_refused_under_the_thesis_reward():
+    env = envs.load(
+        "RectExtract", config_overrides={"engine": "mujoco", "reward_config.kind": "thesis"}
+    )
+    cfg = load_train_config(
+        "RectExtract",
+        "quick",
+        {"env.engine": "mujoco", "env.reward_config.kind": "thesis", "q_target_clip": True},
+    )
+    with pytest.raises(UserInputError, match="q_target_clip needs the outcome reward"):
+        SACTrainer(env, cfg, single_device=True)

@@ -498,6 +498,7 @@ def test_env_overrides_are_checked_before_any_work(capsys, override, needle):
         ("normalize_observations", "yes"),
         ("lr_schedule", "cosine"),
         ("entropy_backup", "no"),
+        ("q_target_clip", 1),
     ],
 )
 def test_training_config_rejects_nonsense(key, value):

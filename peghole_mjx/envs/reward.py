@@ -90,6 +90,19 @@ def failure_cost(rc: config_dict.ConfigDict) -> float:
     return rc.time_cost * (1.0 + rc.w_contact) / (1.0 - rc.discount)
 
 
+def return_bounds(rc: config_dict.ConfigDict) -> tuple[float, float]:
+    """``(lo, hi)``: bounds on the discounted return from any state under the ``outcome``
+    reward (time-outs bootstrapped, so the horizon is unbounded). Every step's time and contact
+    cost lies in ``[-c_max, 0]``, summing to at least ``-c_max / (1 - gamma) = -P``; a terminal
+    failure costs ``P`` once; the progress shaping telescopes to ``gamma^T Phi(s_T) - Phi(s_0)``,
+    within ``[-w_progress, w_progress]`` since ``Phi`` lies in ``[-w_progress, 0]``. So
+    ``hi = w_progress`` and ``lo = -(2 P + w_progress)``. A critic's estimate outside them is
+    an error, whatever the policy."""
+    if rc.kind != "outcome":
+        raise ValueError(f"return bounds are derived for the outcome reward, not {rc.kind!r}")
+    return -(2.0 * failure_cost(rc) + rc.w_progress), float(rc.w_progress)
+
+
 def progress_potential(left_mm, left0_mm: float, rc: config_dict.ConfigDict) -> jax.Array:
     """``Phi = -w_progress * left / left0`` (clipped to [0, 1]): ``left_mm`` the distance the
     tip still has to rise to count as extracted, ``left0_mm`` that distance at the start."""

@@ -34,6 +34,11 @@ Keys, and the choices made where Brax's defaults differ from the thesis (stack_n
   larger at the 0.2-0.6 the learned temperature reached on DualExtractHard
   (docs/research/learner_settings.md), so a backed-up entropy adds a time cost that outweighs
   the reward's force cost and changes the ranking of outcomes the reward was built for.
+* ``q_target_clip``: false (Brax's target); true: the critics' target is clipped to the
+  ``outcome`` reward's bounds on a discounted return, ``[-(2 P + w_progress), w_progress]``
+  (:func:`peghole_mjx.envs.reward.return_bounds`, :mod:`peghole_mjx.training.losses`), refused
+  under the thesis's reward. Why: at one update per env step the critics' estimates on the Hard
+  tasks grew to 40-450 where no return exceeds 30 (docs/research/learner_settings.md).
 * ``tau``: target-critic Polyak rate 0.005; ``reward_scaling``: 1 (the eq 4.4 terms are
   already of order one).
 * ``alpha``: entropy temperature, ``"auto"`` (learned with Brax's target entropy -dim(A)/2)
@@ -65,8 +70,8 @@ Keys, and the choices made where Brax's defaults differ from the thesis (stack_n
 from __future__ import annotations
 
 import json
-from dataclasses import MISSING, asdict, dataclass, field, fields
 from collections.abc import Callable
+from dataclasses import MISSING, asdict, dataclass, field, fields
 from pathlib import Path
 from typing import Any
 
@@ -121,6 +126,7 @@ class TrainConfig:
     learning_rate: float = 3e-4
     lr_schedule: str = "constant"
     entropy_backup: bool = True
+    q_target_clip: bool = False
     discounting: float = 0.99
     tau: float = 0.005
     reward_scaling: float = 1.0
@@ -195,10 +201,9 @@ class TrainConfig:
             self.lr_schedule in LR_SCHEDULES,
             f"lr_schedule must be one of {list(LR_SCHEDULES)}, got {self.lr_schedule!r}",
         )
-        need(
-            isinstance(self.entropy_backup, bool),
-            f"entropy_backup must be true or false, got {self.entropy_backup!r}",
-        )
+        for flag in ("entropy_backup", "q_target_clip"):
+            value = getattr(self, flag)
+            need(isinstance(value, bool), f"{flag} must be true or false, got {value!r}")
         need(
             self.critic in CRITICS,
             f"critic must be one of {list(CRITICS)}, got {self.critic!r}",

@@ -19,6 +19,8 @@ directly:
 * **Entropy in the critics' target, and the learning-rate schedule** (``entropy_backup``,
   ``lr_schedule``, :mod:`peghole_mjx.training.config`): Brax's critic loss with alpha 0 is a
   target without the entropy bonus; the actor and critics take an optax schedule.
+* **Critic targets within the reward's return bounds** (``q_target_clip``,
+  :mod:`peghole_mjx.training.losses`): Brax's critic loss with its target clipped.
 * **Episode statistics during training** (force, |F_xy|, discounted return of every finished
   training episode) for the thesis's Figs 4.5-4.7.
 
@@ -64,10 +66,12 @@ from jax._src import distributed  # private (jax 0.10.2): the coordination clien
 from peghole_mjx.core.errors import UserInputError
 from peghole_mjx.envs.extraction import PegHoleEnv
 from peghole_mjx.envs.metrics import accumulate_return, episode_totals, zero_returns
+from peghole_mjx.envs.reward import return_bounds
 from peghole_mjx.policies import make_networks
 from peghole_mjx.sim.engines import batch_reset, select_worlds
 from peghole_mjx.training.config import TrainConfig, check_discount, learning_rate
 from peghole_mjx.training.critics import with_critic
+from peghole_mjx.training.losses import make_clipped_critic_loss
 
 AXIS = "i"
 
@@ -145,6 +149,11 @@ class SACTrainer:
         the pieces run under (the reset predicate is reduced over it)."""
         rc = env.config.reward_config
         check_discount(rc.kind, rc.discount, cfg.discounting)
+        if cfg.q_target_clip and rc.kind != "outcome":
+            raise UserInputError(
+                "q_target_clip needs the outcome reward (its return bounds); "
+                f"env.reward_config.kind is {rc.kind!r}"
+            )
         self.env, self.cfg, self.seed_axis = env, cfg, seed_axis
         # the vmapped axes the acting step runs under (none under pmap: there each device's
         # flag is its own): the one-wide axis of the pure learner and the seeds' axis
@@ -185,6 +194,10 @@ class SACTrainer:
             discounting=cfg.discounting,
             action_size=act_size,
         )
+        if cfg.q_target_clip:  # the same loss, its target clipped to the reward's bounds
+            critic_loss = make_clipped_critic_loss(
+                self.nets, cfg.reward_scaling, cfg.discounting, return_bounds(rc)
+            )
         self._alpha_update = gradients.gradient_update_fn(alpha_loss, self.alpha_opt, AXIS)
         self._critic_update = gradients.gradient_update_fn(critic_loss, self.q_opt, AXIS)
         self._actor_update = gradients.gradient_update_fn(actor_loss, self.policy_opt, AXIS)
