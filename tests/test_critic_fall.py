@@ -20,6 +20,15 @@ def test_the_fall_is_the_first_evaluation_below_the_best_minus_the_margin_after_
     # 0.96 is within 0.05 of the best: not a fall; 0.5 is
     assert (f["fall_step"], f["fall_success"], f["loss_at_fall"]) == (4800, 0.5, 3.0)
     assert (f["last"], f["last_loss"]) == (0.9, 9.0)
+    assert f["first_episode_step"] is None and f["train_episodes"] == 0 and f["q_end"] is None
+
+
+def test_training_episodes_and_the_critics_estimate_are_read_from_the_rows():
+    rows = _rows([(0, 0.8, None), (1600, 1.0, 0.01), (3200, 0.9, 0.02), (4800, 1.0, 0.03)])
+    for row, episodes, actor in zip(rows, ("", "0", "3", "2"), ("", "-1.5", "-4", ""), strict=True):
+        row["train/episodes"], row["loss/actor"] = episodes, actor
+    f = fall(rows)
+    assert (f["first_episode_step"], f["train_episodes"], f["q_end"]) == (3200, 5, 4.0)
 
 
 def test_a_run_that_never_falls_has_no_fall_and_a_missing_loss_reads_as_none():

@@ -44,7 +44,10 @@ def fall(rows: list[dict]) -> dict:
     """Where a run's evaluations fell: ``best`` (the highest success), ``best_step`` (its first
     evaluation), ``fall_step`` (the first later evaluation below ``best - COLLAPSE_MARGIN``,
     None if none), the critic's loss at both (``loss_at_best``, ``loss_at_fall``) and the last
-    evaluation's success and loss (``last``, ``last_loss``)."""
+    evaluation's success and loss (``last``, ``last_loss``); the env step of the first row that
+    counts a finished training episode (``first_episode_step``, None if none), the training
+    episodes counted in all (``train_episodes``), and minus the last logged actor loss
+    (``q_end``: the critics' ``min Q - alpha log pi`` over a batch, None if never logged)."""
     num = finite_or_none
     evals = [
         (int(r["step"]), num(r.get("eval/success_rate")), num(r.get("loss/critic"))) for r in rows
@@ -65,11 +68,22 @@ def fall(rows: list[dict]) -> dict:
         "loss_at_fall": None if down is None else down[2],
         "last": evals[-1][1],
         "last_loss": evals[-1][2],
+        "first_episode_step": next(
+            (int(r["step"]) for r in rows if (num(r.get("train/episodes")) or 0) > 0), None
+        ),
+        "train_episodes": int(sum(num(r.get("train/episodes")) or 0 for r in rows)),
+        "q_end": next(
+            (-v for r in reversed(rows) if (v := num(r.get("loss/actor"))) is not None), None
+        ),
     }
 
 
 def _g(v: float | None, fmt: str) -> str:
     return "-" if v is None else f"{v:{fmt}}"
+
+
+def _k(step: int | None) -> str:
+    return "none" if step is None else f"{step / 1e3:.1f}k"
 
 
 @table("critic_fall")
@@ -79,8 +93,9 @@ def fall_table() -> str:
     lines = [
         "| run | seed | best eval success (env steps) | critic loss there | first fall below "
         "best - 0.05 (env steps) | critic loss there | last eval success | critic loss at "
-        "the end | run folder (under benchmarks/results/evals) |",
-        "|---|---|---|---|---|---|---|---|---|",
+        "the end | first training episode ended (env steps) | training episodes | minus the "
+        "actor loss at the end | run folder (under benchmarks/results/evals) |",
+        "|---|---|---|---|---|---|---|---|---|---|---|---|",
     ]
     for label, folder in RUN_GROUPS:
         runs = sorted(
@@ -98,6 +113,8 @@ def fall_table() -> str:
                 f"| {label} | {path.parent.name[5:]} | {f['best']:.2f} "
                 f"({f['best_step'] / 1e3:.1f}k) | {_g(f['loss_at_best'], '.3g')} | {where} | "
                 f"{_g(f['loss_at_fall'], '.3g')} | {f['last']:.2f} | "
-                f"{_g(f['last_loss'], '.3g')} | `{path.parent.relative_to(EVALS_RESULTS)}` |"
+                f"{_g(f['last_loss'], '.3g')} | {_k(f['first_episode_step'])} | "
+                f"{f['train_episodes']} | {_g(f['q_end'], '.3g')} | "
+                f"`{path.parent.relative_to(EVALS_RESULTS)}` |"
             )
     return "\n".join(lines)
