@@ -92,10 +92,25 @@ def test_unknown_critic_is_refused():
         make_q_network("transformer", OBS, ACT)
 
 
+def _batch(trainer: SACTrainer, n: int, seed: int):
+    """A replay batch of ``n`` random transitions of the trainer's sizes (none truncated)."""
+    from brax.training.types import Transition
+
+    rng = np.random.default_rng(seed)
+    obs, act = trainer.obs_size, trainer.act_size
+    return Transition(
+        observation=jnp.asarray(rng.normal(size=(n, obs)), jnp.float32),
+        action=jnp.asarray(rng.uniform(-1, 1, size=(n, act)), jnp.float32),
+        reward=jnp.asarray(rng.normal(size=n), jnp.float32),
+        discount=jnp.ones(n),
+        next_observation=jnp.asarray(rng.normal(size=(n, obs)), jnp.float32),
+        extras={"state_extras": {"truncation": jnp.zeros(n)}, "policy_extras": {}},
+    )
+
+
 def _one_update(cfg_overrides: dict, log_alpha: float):
     """The critics' parameters after one SGD step of a fresh learner (seed 0, fixed batch) whose
     temperature is ``exp(log_alpha)``."""
-    from brax.training.types import Transition
 
     from peghole_mjx.training.sac import AXIS
 
@@ -104,16 +119,7 @@ def _one_update(cfg_overrides: dict, log_alpha: float):
     trainer = SACTrainer(env, cfg, single_device=True)
     ts = trainer.learner_state(jax.random.PRNGKey(0))
     ts = ts.replace(log_alpha=jnp.asarray(log_alpha, jnp.float32))
-    rng = np.random.default_rng(1)
-    n, obs, act = 16, trainer.obs_size, trainer.act_size
-    trans = Transition(
-        observation=jnp.asarray(rng.normal(size=(n, obs)), jnp.float32),
-        action=jnp.asarray(rng.uniform(-1, 1, size=(n, act)), jnp.float32),
-        reward=jnp.asarray(rng.normal(size=n), jnp.float32),
-        discount=jnp.ones(n),
-        next_observation=jnp.asarray(rng.normal(size=(n, obs)), jnp.float32),
-        extras={"state_extras": {"truncation": jnp.zeros(n)}, "policy_extras": {}},
-    )
+    trans = _batch(trainer, 16, seed=1)
     step = jax.vmap(
         lambda t, tr: trainer._sgd_step((t, jax.random.PRNGKey(2)), tr)[0][0], axis_name=AXIS
     )
@@ -167,7 +173,6 @@ def test_clipped_target_critic_loss_is_braxs_inside_the_bounds_and_clips_outside
     """Within wide bounds the clipped loss equals Brax's, value for value; with a ceiling
     below every target the critics regress on the ceiling."""
     from brax.training.agents.sac import losses as sac_losses
-    from brax.training.types import Transition
 
     from peghole_mjx.training.losses import make_clipped_critic_loss
 
@@ -175,16 +180,8 @@ def test_clipped_target_critic_loss_is_braxs_inside_the_bounds_and_clips_outside
     cfg = load_train_config("RectExtract", "quick", {"env.engine": "mujoco"})
     trainer = SACTrainer(env, cfg, single_device=True)
     ts = trainer.learner_state(jax.random.PRNGKey(0))
-    rng = np.random.default_rng(3)
-    n, obs, act = 32, trainer.obs_size, trainer.act_size
-    trans = Transition(
-        observation=jnp.asarray(rng.normal(size=(n, obs)), jnp.float32),
-        action=jnp.asarray(rng.uniform(-1, 1, size=(n, act)), jnp.float32),
-        reward=jnp.asarray(rng.normal(size=n), jnp.float32),
-        discount=jnp.ones(n),
-        next_observation=jnp.asarray(rng.normal(size=(n, obs)), jnp.float32),
-        extras={"state_extras": {"truncation": jnp.zeros(n)}, "policy_extras": {}},
-    )
+    trans = _batch(trainer, 32, seed=3)
+    act = trainer.act_size
     args = (ts.q_params, ts.policy_params, ts.normalizer, ts.target_q_params, 0.1, trans)
     key = jax.random.PRNGKey(4)
     _, brax_loss, _ = sac_losses.make_losses(trainer.nets, 1.0, cfg.discounting, act)
