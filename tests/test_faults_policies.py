@@ -109,9 +109,11 @@ def test_tampered_policy_is_refused_on_load_before_any_env_is_built(
     elif damage == "int8_params":
         key = "1/params/hidden_0/kernel"
         _edit_arrays(rect_copy, lambda a: a.update({key: a[key].astype(np.int8)}))
-    elif damage == "flipped_normaliser":
+    elif damage == "flipped_normaliser":  # statistics under a false flag (whatever rect's is)
         _edit_meta(rect_copy, lambda m: m["network"].update(normalize_observations=False))
-    elif damage == "zero_std":
+        _edit_arrays(rect_copy, lambda a: a["0/mean"].__setitem__(0, 1.0))
+    elif damage == "zero_std":  # a normalising policy with a zero standard deviation
+        _edit_meta(rect_copy, lambda m: m["network"].update(normalize_observations=True))
         _edit_arrays(rect_copy, lambda a: a["0/std"].__setitem__(0, 0.0))
     elif damage == "format_version_true":
         _edit_meta(rect_copy, lambda m: m.update(format_version=True))
