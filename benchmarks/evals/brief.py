@@ -34,12 +34,14 @@ from __future__ import annotations
 import functools
 import json
 import math
+from dataclasses import MISSING, fields
 from pathlib import Path
 
 from benchmarks.baselines.time_to_success import HARD_ENV
 from benchmarks.common import (
     EVALS_RESULTS,
     STUDIES_RESULTS,
+    fmt_settings_diff,
     rel,
     settings_diff,
     table,
@@ -57,6 +59,7 @@ from benchmarks.evals.paired_reduction import POLICIES, how_trained
 from benchmarks.evals.rl_vs_rlcs import fmt_interval
 from benchmarks.evals.rl_vs_rlcs import result_files as rl_vs_rlcs_files
 from benchmarks.perf.throughput import ENGINES_CSV, engine_rate, engine_rows
+from peghole_mjx.training.config import TrainConfig, default, load_train_config
 from peghole_mjx.training.selection import FINAL_RULE
 
 #: the thesis's side of each row: (claim, what the thesis states, where it states it)
@@ -462,6 +465,31 @@ def stack_tasks() -> tuple[dict[str, dict[str, dict]], dict[str, set[str]]]:
     return done, unfinished
 
 
+#: training keys a learning row does not compare with the profile: the seed, the budget and
+#: updates per env step (named beside each stack), the evaluation schedule, the env's entries
+PROFILE_DIFF_IGNORE = (
+    "seed",
+    "num_timesteps",
+    "grad_updates_per_step",
+    "eval_every",
+    "num_eval_envs",
+    "env_overrides.",
+    "profile",
+)
+
+
+def profile_diff(t: dict) -> str:
+    """``; ours vs TASK's cpu profile: KEY a vs b; ...``: the learner settings in which our
+    entry of a row differs from its task's ``cpu`` profile (keys the record lacks read as
+    :class:`TrainConfig`'s defaults), so a reader sees that the row's learner is not the
+    default one."""
+    defaults = {f.name: default(f.name) for f in fields(TrainConfig) if f.default is not MISSING}
+    recorded = {**defaults, **t["config"]}  # in TrainConfig's field order: a stable row
+    profile = load_train_config(t["task"], "cpu").as_dict()
+    diffs = settings_diff(recorded, profile, PROFILE_DIFF_IGNORE)
+    return f"; ours vs {t['task']}'s cpu profile: {fmt_settings_diff(diffs)}"
+
+
 def stack_settings(entries: dict[str, dict]) -> str:
     """What the stacks of a row trained on: engine, reward, actions (said once, ``all: ...``,
     when every stack shares them), budget, updates/env step."""
@@ -532,7 +560,7 @@ def _time_rows() -> list[str]:
         not_run = f"; not run: {', '.join(missing)}" if missing else ""
         not_run += f"; not finished: {', '.join(waiting)}" if waiting else ""
         ours, interval = cells(entries)
-        text = f"{ours}; {stack_settings(entries)}{not_run}"
+        text = f"{ours}; {stack_settings(entries)}{profile_diff(entries['ours'])}{not_run}"
         out.append(_row(key, text, interval, NO_CLAIM, *(t["file"] for t in entries.values())))
     return out
 

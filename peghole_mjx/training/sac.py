@@ -172,8 +172,9 @@ class SACTrainer:
         obs_size, act_size = self.network["observation_size"], self.network["action_size"]
         self.obs_size, self.act_size = obs_size, act_size
         self.fixed_alpha = cfg.alpha != "auto"
-        self.policy_opt = optax.adam(learning_rate(cfg))
-        self.q_opt = optax.adam(learning_rate(cfg))
+        lr = learning_rate(cfg)  # a number, or one schedule for the actor and the critics
+        self.policy_opt = optax.adam(lr)
+        self.q_opt = optax.adam(lr)
         self.alpha_opt = optax.adam(3e-4)
         dummy_obs = jnp.zeros((obs_size,))
         self.buffer = replay_buffers.UniformSamplingQueue(
