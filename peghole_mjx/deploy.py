@@ -78,6 +78,7 @@ SOURCES = frozenset(
         "prev_action",
         "force_ff_N",
         "command_offset_m",
+        "step",
     }
 )
 
@@ -483,6 +484,7 @@ class DeployedPolicy:
             "L_C_m": np.array([self._L_C]),
             "prev_action": self._prev_action,
             "force_ff_N": self._ff,
+            "step": np.array([float(self._step)]),  # control steps since reset
         }
         if any(s == "command_offset_m" for s, *_ in self._entries):
             sources["command_offset_m"] = self._cmd_tip - self.tip_position(pos, tilt)

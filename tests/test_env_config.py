@@ -45,6 +45,7 @@ PROBE_BASE = {
     "obs.stiffness": True,
     "obs.prev_action": True,
     "obs.commands": True,
+    "obs.time_left": True,
     "reward_config.w_stf_rot": 0.5,
     "reward_config.w_fz": 0.5,
 }
@@ -102,6 +103,7 @@ def probe_obs(c):
         "L_C": 0.01,
         "prev_action": ACTION,
         "wrench_ff": jnp.array([1.5, -2.0, 30.0]),
+        "step": jnp.array(7, jnp.int32),
     }
     pos, rot = jnp.array([1e-3, -2e-3, 0.12]), jnp.array([0.01, -0.02, 0.003])
     cmd_offset = jnp.array([0.4e-3, -0.1e-3, 2e-3])
@@ -160,7 +162,7 @@ def probe_reset_draw(c):
 #: entry -> (overridden value, probe); each value differs from the probe setting
 PURE = {
     "ctrl_dt": (0.04, [probe_action, probe_termination]),
-    "episode_length": (10_000, [probe_termination]),
+    "episode_length": (10_000, [probe_termination, probe_obs]),
     "success_margin_mm": (6.0, [probe_termination]),
     "jam_force_N": (19.5, [probe_termination]),
     "jam_time_s": (0.35, [probe_termination]),
@@ -189,6 +191,7 @@ PURE = {
     "obs.stiffness": (False, [probe_obs]),
     "obs.prev_action": (False, [probe_obs]),
     "obs.commands": (False, [probe_obs]),
+    "obs.time_left": (False, [probe_obs]),
     "obs.force_scale_N": (10.0, [probe_obs]),
     "obs.torque_scale_Nm": (1.0, [probe_obs]),
     "obs.k_xy_scale_N_m": (500.0, [probe_obs]),
@@ -353,8 +356,10 @@ def _leaves(c, prefix=""):
 
 def test_every_config_entry_is_checked():
     # test_impl_and_warp_buffers_are_read, test_engine_and_its_threads_are_read
-    # and reward_config.kind, which picks the function: tests/test_reward.py (the env's step)
+    # and reward_config.kind and .time_limit, which pick the function and the terminal steps:
+    # tests/test_reward.py (the env's step)
     extra = {"impl", "naconmax", "njmax", "engine", "mujoco_threads", "reward_config.kind"}
+    extra |= {"reward_config.time_limit"}
     for name in envs.ALL_ENVS:
         leaves = set(_leaves(envs.get_default_config(name)))
         assert leaves == set(PURE) | set(SCENE) | extra, name

@@ -34,6 +34,7 @@ from peghole_mjx.policies.export import (
     compare_with_evaluation,
     export_policy,
     jax_actions,
+    read_spec,
     run_deployed,
 )
 from peghole_mjx.sim.engines import engine_overrides
@@ -142,6 +143,34 @@ def test_onnx_actions_equal_jax_on_10000_observations(exports, mujoco_env, name)
     assert diff.max() <= EXPORT_TOLERANCE, (diff.max(), np.unravel_index(diff.argmax(), diff.shape))
     assert np.all(np.abs(onnx_a) <= 1.0)
     assert np.ptp(jax_a, axis=0).min() > 0.01  # the observations do move every action
+
+
+@pytest.mark.slow
+def test_the_time_left_entry_is_exported_and_deployed_as_the_env_computes_it(tmp_path):
+    """A policy whose env observes the time left (``obs.time_left``, with the time-out a
+    failure): the export names the entry (offset the episode length, scale its inverse
+    negated) and the deployed observation, counted from its own steps, equals the env's."""
+    from peghole_mjx.policies import init_params, save_policy
+
+    bundle = load_policy("rect")
+    meta = json.loads(json.dumps(bundle.meta))
+    meta["env_overrides"] |= {
+        "obs.time_left": True,
+        "reward_config.kind": "outcome",
+        "reward_config.time_limit": "failure",
+    }
+    meta["network"]["observation_size"] += 1
+    meta["network"]["normalize_observations"] = False
+    save_policy(tmp_path / "pol", init_params(meta["network"], seed=1), meta)
+    folder = Path(export_policy(tmp_path / "pol", tmp_path / "export")["out"])
+    entry = read_spec(folder)["observation"]["entries"][-1]
+    n = get_default_config("RectExtract").episode_length
+    assert entry["name"] == "time_left" and entry["source"] == "step"
+    assert entry["offset"] == n and entry["scale"] == pytest.approx(-1.0 / n)
+    run = run_deployed(folder, 2, max_steps=30, record=True)
+    assert run.observations[:, -1].max() == pytest.approx(1.0)
+    assert run.observations[:, -1].min() < 1.0  # the entry moves
+    assert run.max_obs_diff < 1e-3, run.max_obs_diff
 
 
 @pytest.mark.slow

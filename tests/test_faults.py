@@ -623,6 +623,9 @@ def test_evaluate_prints_the_result_before_a_failed_write(
     out = tmp_path / "ev.json"
     assert peghole(["evaluate", "rect", "--json", "--out", out], capsys)[0] == 0
     old = out.read_text()  # the program's own file (its record beside it): rewritten below
+    written = strict_json(old)  # the result, with where, when and how it was made
+    assert written["command"] == f"peghole evaluate rect --json --out {out}"
+    assert {"device", "versions", "date", "commit"} <= written.keys()
     with monkeypatch.context() as m:
         # the disk fills during the evaluation: the check before it (a real write probe, which
         # a disk already full refuses: test_faults_policies.py) still passed
@@ -665,7 +668,10 @@ def test_evaluate_several_checkpoints_share_one_baseline_and_policy_only(
     assert rc == 0
     res = strict_json(stdout)
     assert [r["policy_path"] for r in res] == ["rect", "dual"] == [c[0] for c in calls]
-    assert strict_json(out.read_text()) == res
+    stamps = ("device", "versions", "date", "command", "commit")
+    written = strict_json(out.read_text())
+    assert [{k: v for k, v in r.items() if k not in stamps} for r in written] == res
+    assert all(r["command"].startswith("peghole evaluate rect dual --seed 3") for r in written)
     assert calls[0][3] is calls[1][3]  # one baseline cache for the whole command
     assert {c[1:3] for c in calls} == {(3, False)}
     calls.clear()

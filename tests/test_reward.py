@@ -12,6 +12,7 @@ import numpy as np
 import pytest
 
 from peghole_mjx import envs
+from peghole_mjx.core.errors import UserInputError
 from peghole_mjx.envs.reward import failure_cost, outcome_terms, reward_terms
 
 DEPTH0_MM = 25.0  # start depth of the built episodes (RectExtract's order of size)
@@ -194,24 +195,35 @@ def test_training_pays_the_outcome_reward_by_default_at_its_discount_and_eq_4_4_
 def test_env_time_out_is_a_truncation_under_the_outcome_reward_only():
     """On the MuJoCo C engine, 5-step episodes held in place: the outcome reward ends them by
     truncation (done 1, truncation 1, counted a failure, no end cost) with terms that sum to
-    the reward; the thesis's reward ends them as a terminal failure (-1, truncation 0)."""
+    the reward; with ``time_limit`` "failure" it ends them as a terminal failure costing the
+    failure cost P, and the observation's last entry is the share of time left (1 at the
+    reset, 0 at the limit); the thesis's reward ends them as a terminal failure (-1,
+    truncation 0)."""
     import jax
 
-    def run(kind):
+    failure_limit = {"reward_config.time_limit": "failure", "obs.time_left": True}
+
+    def run(kind, extra):
         env = envs.load(
             "RectExtract",
-            config_overrides={"engine": "mujoco", "episode_length": 5, "reward_config.kind": kind},
+            config_overrides={
+                "engine": "mujoco",
+                "episode_length": 5,
+                "reward_config.kind": kind,
+                **extra,
+            },
         )
         reset, step = jax.jit(jax.vmap(env.reset)), jax.jit(jax.vmap(env.step))
         s = reset(jax.random.split(jax.random.PRNGKey(0), 2))
-        out = []
+        out = [s]
         for _ in range(5):
             s = step(s, jnp.zeros((2, env.action_size)))
             out.append(s)
-        return out
+        return env, out
 
-    for kind in ("outcome", "thesis"):
-        states = run(kind)
+    for kind, extra in (("outcome", {}), ("outcome", failure_limit), ("thesis", {})):
+        env, with_reset = run(kind, extra)
+        states = with_reset[1:]
         last = states[-1]
         assert (np.asarray(last.done) == 1).all() and (
             np.asarray(last.metrics["failure"]) == 1
@@ -221,10 +233,24 @@ def test_env_time_out_is_a_truncation_under_the_outcome_reward_only():
             terms = sum(np.asarray(v) for k, v in s.metrics.items() if k.startswith("reward/"))
             np.testing.assert_allclose(terms, np.asarray(s.reward), rtol=1e-5, atol=1e-4)
         trunc, end = np.asarray(last.info["truncation"]), np.asarray(last.metrics["reward/end"])
-        if kind == "outcome":
+        if kind == "outcome" and not extra:
             assert (trunc == 1).all() and (end == 0).all()
             cost = env_time_cost = envs.get_default_config("RectExtract").reward_config.time_cost
             np.testing.assert_allclose(np.asarray(last.metrics["reward/time"]), -cost, rtol=1e-6)
             assert env_time_cost > 0
+        elif kind == "outcome":
+            assert (trunc == 0).all()
+            np.testing.assert_allclose(end, -failure_cost(env.config.reward_config), rtol=1e-6)
+            assert env.observation_size == envs.load("RectExtract").observation_size + 1
+            left = [np.asarray(s.obs)[:, -1] for s in with_reset]
+            np.testing.assert_allclose(left, np.repeat([[1.0, 0.8, 0.6, 0.4, 0.2, 0.0]], 2, 0).T,
+                                       atol=1e-6)  # fmt: skip
         else:
             assert (trunc == 0).all() and (end == -1).all()
+
+
+def test_a_terminal_time_limit_needs_the_time_left_in_the_observation():
+    with pytest.raises(UserInputError, match="time_limit 'failure' needs obs.time_left true"):
+        envs.load("RectExtract", config_overrides={"reward_config.time_limit": "failure"})
+    with pytest.raises(UserInputError, match="time_limit must be one of truncation, failure"):
+        envs.load("RectExtract", config_overrides={"reward_config.time_limit": "terminal"})

@@ -221,7 +221,7 @@ def test_the_readme_learning_rows_come_from_the_stacks_files_and_name_what_diffe
     files = {s: tmp_path / f"learning_{s}.json" for s in ("ours", "seed", "sb3")}
     monkeypatch.setattr(brief, "STACK_FILES", files)
     ours_file = tmp_path / "taskq" / "learning.json"
-    monkeypatch.setattr(brief, "TASKQ_FILE", ours_file)
+    monkeypatch.setattr(brief, "published_protocol_file", lambda: ours_file)
     rows = brief._time_rows()
     assert all("| pending |" in r for r in rows)  # no stack file: nothing compared
     ours_file.parent.mkdir()
@@ -264,6 +264,29 @@ def test_the_readme_learning_rows_come_from_the_stacks_files_and_name_what_diffe
     assert "learning_partial.json" in hard_row
     partial.write_text(json.dumps({"tasks": [ours, hard], "pending": pending}))
     assert "| pending |" in brief._time_rows()[1]
+
+
+def test_the_readme_reads_ours_from_the_protocol_the_published_policies_name(tmp_path, monkeypatch):
+    # the committed policies: one protocol, whose report sits beside it
+    path = brief.published_protocol_file()
+    assert path.name == "learning.json" and (path.parent / "protocol.md").is_file()
+    # policies published under two protocols (or none) are refused, naming each policy's
+    policies = {}
+    for name, protocol in (("rect", "a/protocol.md"), ("dual", "b/protocol.md")):
+        (tmp_path / name).mkdir()
+        meta = {"selection": {"protocol": protocol}}
+        (tmp_path / name / "policy.json").write_text(json.dumps(meta))
+        policies[name] = tmp_path / name
+    monkeypatch.setattr(brief, "PRETRAINED", policies)
+    with pytest.raises(ValueError, match="'rect': 'a/protocol.md', 'dual': 'b/protocol.md'"):
+        brief.published_protocol_file()
+    (tmp_path / "dual" / "policy.json").write_text(json.dumps({"selection": {}}))
+    with pytest.raises(ValueError, match="'dual': None"):
+        brief.published_protocol_file()
+    (tmp_path / "dual" / "policy.json").write_text(
+        json.dumps({"selection": {"protocol": "a/protocol.md"}})
+    )
+    assert brief.published_protocol_file() == common.ROOT / "a" / "learning.json"
 
 
 def test_a_study_of_two_collapsed_learners_is_not_a_readme_row():

@@ -40,6 +40,7 @@ from pathlib import Path
 from benchmarks.baselines.time_to_success import HARD_ENV
 from benchmarks.common import (
     EVALS_RESULTS,
+    ROOT,
     STUDIES_RESULTS,
     fmt_settings_diff,
     rel,
@@ -49,7 +50,6 @@ from benchmarks.common import (
 from benchmarks.evals.experiments import ordered
 from benchmarks.evals.learning import (
     STACK_FILES,
-    TASKQ_FILE,
     censored_median_iqr,
     censored_text,
     report_file,
@@ -59,6 +59,7 @@ from benchmarks.evals.paired_reduction import POLICIES, how_trained
 from benchmarks.evals.rl_vs_rlcs import fmt_interval
 from benchmarks.evals.rl_vs_rlcs import result_files as rl_vs_rlcs_files
 from benchmarks.perf.throughput import ENGINES_CSV, engine_rate, engine_rows
+from peghole_mjx.policies import PRETRAINED
 from peghole_mjx.training.config import TrainConfig, default, load_train_config
 from peghole_mjx.training.selection import FINAL_RULE
 
@@ -439,11 +440,29 @@ def _throughput_row() -> str:
 STACK_LABELS = {"ours": "ours", "seed": "seed stack", "sb3": "SB3 SAC"}
 
 
+def published_protocol_file() -> Path:
+    """The learning-benchmark report of the protocol the published policies come from: the
+    ``learning.json`` beside the protocol every policy of :data:`PRETRAINED` records
+    (``selection.protocol``, written by ``train/publish_policy.py --protocol``). Policies
+    published under different protocols are an error, so a row never mixes them."""
+    protocols = {}
+    for name, path in PRETRAINED.items():
+        meta = json.loads((path / "policy.json").read_text())
+        protocols[name] = meta.get("selection", {}).get("protocol")
+    if None in protocols.values() or len(set(protocols.values())) != 1:
+        raise ValueError(f"the published policies name different or no protocols: {protocols}")
+    return ROOT / Path(next(iter(protocols.values()))).parent / "learning.json"
+
+
 def row_files() -> dict[str, Path]:
-    """The result file of each entry of :data:`STACK_LABELS`: ours from the task-reward-critics
-    protocol (the published policies' protocol), the other stacks from the residual protocol's
-    folder."""
-    return {"ours": TASKQ_FILE, "seed": STACK_FILES["seed"], "sb3": STACK_FILES["sb3"]}
+    """The result file of each entry of :data:`STACK_LABELS`: ours from the protocol the
+    published policies come from (:func:`published_protocol_file`), the other stacks from the
+    residual protocol's folder."""
+    return {
+        "ours": published_protocol_file(),
+        "seed": STACK_FILES["seed"],
+        "sb3": STACK_FILES["sb3"],
+    }
 
 
 def stack_tasks() -> tuple[dict[str, dict[str, dict]], dict[str, set[str]]]:

@@ -19,10 +19,11 @@ from peghole_mjx.training.logs import read_metrics
 
 _BENCH = EVALS_RESULTS / "learning_residual_cpu-2core"
 #: the run folders read, as (label, folder holding seed_* runs): the tuning probes
-#: (RectExtractHard) and the one-update-per-env-step and task-reward-critics benchmarks' Hard
-#: tasks
+#: (RectExtractHard) and the Hard tasks of the one-update-per-env-step, task-reward-critics and
+#: more-worlds benchmarks
 _UTD1 = EVALS_RESULTS / "learning_utd1_cpu-2core" / "runs"
 _TASKQ = EVALS_RESULTS / "learning_taskq_cpu-2core" / "runs"
+_WORLDS = EVALS_RESULTS / "learning_worlds_cpu-2core" / "runs"
 RUN_GROUPS = (
     (
         "probe, mlp critic: RectExtractHard",
@@ -37,6 +38,12 @@ RUN_GROUPS = (
     ("1 update/step protocol: DualExtractHard", _UTD1 / "DualExtractHard"),
     ("task-reward critics protocol: RectExtractHard", _TASKQ / "RectExtractHard"),
     ("task-reward critics protocol: DualExtractHard", _TASKQ / "DualExtractHard"),
+    (
+        "probe, 256 worlds: RectExtractHard",
+        _TASKQ.parent / "probe_more_worlds" / "runs" / "RectExtractHard",
+    ),
+    ("more-worlds protocol: RectExtractHard", _WORLDS / "RectExtractHard"),
+    ("more-worlds protocol: DualExtractHard", _WORLDS / "DualExtractHard"),
 )
 
 

@@ -410,6 +410,9 @@ UTD1_FILE = EVALS_RESULTS / "learning_utd1_cpu-2core" / "learning.json"
 #: one-update-per-env-step learner with critics whose target has no entropy bonus and learning
 #: rates falling to zero, on fresh seeds
 TASKQ_FILE = EVALS_RESULTS / "learning_taskq_cpu-2core" / "learning.json"
+#: the more-worlds protocol's result file (docs/research/learner_settings.md): the task-reward
+#: critics' learner with eight times the worlds and env steps at the same gradient updates
+WORLDS_FILE = EVALS_RESULTS / "learning_worlds_cpu-2core" / "learning.json"
 
 #: the residual protocol's result file of each stack (one ``--out``: the stacks sit together)
 STACK_FILES = {
@@ -499,6 +502,12 @@ def utd1_table() -> str:
 def taskq_table() -> str:
     """The task-reward-critics benchmark per task, from its result file."""
     return benchmark_table((TASKQ_FILE,))
+
+
+@table("learning_worlds")
+def worlds_table() -> str:
+    """The more-worlds benchmark per task, from its result file."""
+    return benchmark_table((WORLDS_FILE,))
 
 
 def report_file(path: Path) -> Path | None:

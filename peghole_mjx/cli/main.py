@@ -150,6 +150,7 @@ def main(argv: list[str] | None = None, started: float | None = None) -> int:
 def _run(argv: list[str] | None) -> int:
     parser = build_parser()
     args = parser.parse_args(argv)
+    args.argv = [str(a) for a in (sys.argv[1:] if argv is None else argv)]  # result records
     if not hasattr(args, "func"):
         parser.print_help()
         return 2

@@ -29,6 +29,7 @@ from peghole_mjx.envs.reward import (
     OUTCOME_WEIGHTS,
     REWARD_KINDS,
     REWARD_WEIGHTS,
+    TIME_LIMITS,
     outcome_ordering_problem,
 )
 from peghole_mjx.geometry.mjcf import SimOptions, contact_cap_entry, contact_cap_for
@@ -124,6 +125,11 @@ def base_config(preset: str) -> config_dict.ConfigDict:
             # failure, less force and time more (opt-in: it did not learn RectExtract,
             # docs/research/learning.md; envs/reward.py says why and how)
             kind="thesis",
+            # the outcome reward's time limit: "truncation" (a time-out is not an outcome; the
+            # learner bootstraps it) or "failure" (a terminal failure like a jam, with the time
+            # left in the observation, obs.time_left). Under "thesis" a time-out is always a
+            # terminal failure (eq 4.4's -1)
+            time_limit="truncation",
             **REWARD_WEIGHTS,
             force_scale_N=LIMITS.max_force_N[0],  # |f_xy| is measured in units of this
             stiffness_scale_N_m=1000.0,  # ||k_xy|| is measured in N/mm
@@ -154,6 +160,10 @@ def base_config(preset: str) -> config_dict.ConfigDict:
             # entries): the integrators of actions 0-5, which eq (4.2)'s state leaves hidden
             # (docs/research/index.md, "Self-inflicted failures")
             commands=False,
+            # the share of the time limit still left (1 at the start, 0 at episode_length):
+            # needed when a time-out is an outcome (reward_config.time_limit "failure"), else
+            # the time-out cannot be predicted from the observation
+            time_left=False,
             force_scale_N=LIMITS.max_force_N[0],
             torque_scale_Nm=LIMITS.max_torque_Nm[0],
             # with stiffness: k_xy and K_theta in units of these (L_C in units of the peg
@@ -417,6 +427,7 @@ FLAGS = frozenset(
         "obs.stiffness",
         "obs.prev_action",
         "obs.commands",
+        "obs.time_left",
         "stuck.enabled",
         "action.residual",
     }
@@ -424,7 +435,16 @@ FLAGS = frozenset(
 #: entries that are text (``representation``: or None, the preset's default); their values are
 #: checked where they are read (the preset, geometry, engine, impl and representation names)
 TEXT = frozenset(
-    {"preset", "geometry", "engine", "impl", "representation", "task", "reward_config.kind"}
+    {
+        "preset",
+        "geometry",
+        "engine",
+        "impl",
+        "representation",
+        "task",
+        "reward_config.kind",
+        "reward_config.time_limit",
+    }
 )
 #: entries that are None for "the default" (else a number in range)
 OPTIONAL = frozenset({"contact_cap", "representation"})
@@ -512,6 +532,16 @@ def check_config_values(config: config_dict.ConfigDict) -> None:
     if kind == "outcome":
         problem = outcome_ordering_problem(config.reward_config, config.episode_length)
         need(problem is None, str(problem))
+    time_limit = config.reward_config.time_limit
+    need(
+        time_limit in TIME_LIMITS,
+        f"reward_config.time_limit must be one of {', '.join(TIME_LIMITS)}, got {time_limit!r}",
+    )
+    need(
+        time_limit != "failure" or config.obs.time_left,
+        "reward_config.time_limit 'failure' needs obs.time_left true: a time-out that ends the "
+        "episode as a failure must be predictable from the observation",
+    )
     lo, hi = config.stuck.breakaway_N
     need(lo <= hi, f"stuck.breakaway_N must be a range (lo, hi), lo <= hi, got {(lo, hi)!r}")
     spec = env_spec(config)

@@ -253,6 +253,8 @@ def observation(
     if o.commands:  # the two integrators the actions drive, otherwise hidden from the policy
         parts.append(info["wrench_ff"] / o.force_scale_N)
         parts.append(cmd_offset_m / MM)
+    if o.time_left:  # the share of the episode's time limit still left: 1 at the start, 0 at it
+        parts.append((1.0 - info["step"].astype(jnp.float32) / c.episode_length)[None])
     obs = jnp.concatenate(parts)
     return jnp.where(jnp.isfinite(obs), obs, 0.0)
 
@@ -284,7 +286,8 @@ class PegHoleEnv(PegHoleBase):
     | 6-8 | flange tilt theta, phi, psi (rotation vector vs. straight down) | deg |
     | + | optional: torques (/3 N m), k_xy (/1000 N/m), K_theta (/300 N m/rad), L_C (/L), | |
     |   | previous action; commands: the accumulated feed-forward force (/20 N, hole | |
-    |   | frame) and the commanded tip minus the tip (mm, hole frame) | |
+    |   | frame) and the commanded tip minus the tip (mm, hole frame); time_left: the share | |
+    |   | of ``episode_length`` still left (1 at the start, 0 at the time limit) | |
 
     Action (eq 4.3), each in [-1, 1]:
 
@@ -314,7 +317,9 @@ class PegHoleEnv(PegHoleBase):
     ``outcome`` (training's default): ``time`` ``-time_cost`` per step; ``force``
     ``-time_cost w_contact min(|f| / 20 N, 1)``; ``progress`` the potential-based shaping
     ``gamma Phi(s') - Phi(s)``; ``end`` ``-time_cost (1 + w_contact) / (1 - gamma)`` on a
-    terminal failure (jamming, NaN, overflow). A time-out alone sets ``info["truncation"]``.
+    terminal failure (jamming, NaN, overflow). A time-out alone sets ``info["truncation"]``,
+    unless ``reward_config.time_limit`` is ``failure``: then it is a terminal failure too, and
+    the time limit is part of the task (the observation must then carry ``obs.time_left``).
 
     Episode starts are drawn by :attr:`randomization_fn`
     (:func:`peghole_mjx.envs.randomization.randomization_fn`; a task variant may replace it).
@@ -344,7 +349,7 @@ class PegHoleEnv(PegHoleBase):
         through ``reset``: a reset trace costs seconds)."""
         z = jnp.zeros
         info = {"wrench": z(6), "k_xy": z(()), "k_rot": z(()), "L_C": z(())}
-        info |= {"prev_action": z(self.action_size), "wrench_ff": z(3)}
+        info |= {"prev_action": z(self.action_size), "wrench_ff": z(3), "step": z((), jnp.int32)}
         out = jax.eval_shape(lambda: observation(z(3), z(3), info, self._config, 0.0, 1.0, z(3)))
         return int(out.shape[-1])
 
@@ -537,7 +542,8 @@ class PegHoleEnv(PegHoleBase):
         """``(terms, truncation)`` of a step under ``reward_config.kind`` (envs/reward.py):
         the thesis's eq (4.4), where a time-out is a terminal failure (truncation 0), or the
         outcome reward, where a time-out alone is a truncation and not an outcome.
-        ``terminal_failure``: jamming, NaN or contact overflow (not the time limit)."""
+        ``terminal_failure``: jamming, NaN or contact overflow, and the time limit when
+        ``reward_config.time_limit`` is ``failure``."""
         c = self._config
         rc = c.reward_config
         if rc.kind == "thesis":
@@ -607,6 +613,8 @@ class PegHoleEnv(PegHoleBase):
         )
 
         terminal_failure = jnp.maximum(jnp.maximum(jammed, nan), overflow) * (1.0 - success)
+        if c.reward_config.time_limit == "failure":  # the time-out is an outcome too
+            terminal_failure = failure
         terms, truncation = self._reward(
             info, depth, f, k_xy, k_rot, success, failure, terminal_failure
         )

@@ -21,7 +21,10 @@ of both; :data:`REWARD_WEIGHTS` and :data:`OUTCOME_WEIGHTS` are their one source
   failure (jamming, NaN, contact overflow) costs ``P = c_max / (1 - gamma)`` with ``c_max =
   time_cost (1 + w_contact)``, the return of staying in the hole for ever at the largest step
   cost. A time-out is a truncation, not an outcome (``State.info["truncation"]``): the learner
-  bootstraps it (:mod:`peghole_mjx.training.sac`).
+  bootstraps it (:mod:`peghole_mjx.training.sac`). With ``reward_config.time_limit``
+  ``failure`` a time-out is a terminal failure like a jam (costs ``P``) and the observation
+  must carry ``obs.time_left`` (the config is refused otherwise); the ordering below covers it,
+  since it bounds a terminal failure at any ``T_f <= L``.
 
   Why the ordering holds (tested: tests/test_reward.py). With ``L = episode_length`` and
   ``gamma`` the reward's discount: a success after T <= L steps returns at least
@@ -53,6 +56,9 @@ from ml_collections import config_dict
 
 #: the reward kinds of ``reward_config.kind``
 REWARD_KINDS = ("thesis", "outcome")
+#: what a time-out is under the outcome reward (``reward_config.time_limit``): a truncation the
+#: learner bootstraps, or a terminal failure (then ``obs.time_left`` must be on)
+TIME_LIMITS = ("truncation", "failure")
 #: Table 4.1 reward weights (one source of truth; configs copy them into reward_config)
 REWARD_WEIGHTS = {"w_d": 1.0, "w_f": 1.0, "w_stf": 0.1, "r_success": 1.0, "r_failure": -1.0}
 #: the ``outcome`` reward's settings (one source of truth; configs copy them into

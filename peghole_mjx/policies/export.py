@@ -253,6 +253,17 @@ def observation_entries(env) -> list[dict[str, Any]]:
                 "mm",
                 f"commanded tip minus tip, {ax}",
             )
+    if o.time_left:
+        n = int(env.config.episode_length)
+        add(
+            "time_left",
+            "step",
+            0,
+            -1.0 / n,
+            f"time limits ({n} steps)",
+            "share of the time limit left (1 at reset, 0 at the limit)",
+            offset=n,
+        )
     return out
 
 

@@ -16,6 +16,7 @@ from peghole_mjx.core.validation import dumps
 from peghole_mjx.envs.mesh_extract import absolute_task
 from peghole_mjx.files import fileio
 from peghole_mjx.files.lock import LOCK_NAME, RunLock
+from peghole_mjx.files.provenance import run_provenance
 from peghole_mjx.policies import check_recorded_params, load_policy, resolve_policy_path
 from peghole_mjx.sim.engines import engine_overrides
 from peghole_mjx.training import evaluate as evaluation
@@ -248,8 +249,10 @@ def cmd_evaluate(args: argparse.Namespace) -> int:
     res = results[0] if len(results) == 1 else results
     if args.json:
         print(dumps(res), flush=True)
-    if args.out:
-        fileio.write_text(args.out, dumps(res, indent=2) + "\n")
+    if args.out:  # each result carries its device, versions, date, command and commit
+        stamp = run_provenance(["peghole", *getattr(args, "argv", ["evaluate"])])
+        record = [r | stamp for r in results] if len(results) > 1 else results[0] | stamp
+        fileio.write_text(args.out, dumps(record, indent=2) + "\n")
     return 0
 
 
