@@ -147,6 +147,7 @@ INACTIVE = frozenset(
         # the outcome reward's settings act only with reward_config.kind outcome (REQUIRED:
         # the seed stack pays the thesis's eq 4.4)
         *(f"reward_config.{k}" for k in OUTCOME_WEIGHTS),
+        "reward_config.time_limit",
     }
 )
 #: entries the sim honours at one value only: the 9-D observation, the 6-D action with the
@@ -158,6 +159,7 @@ REQUIRED = {
     "learn_compliance_centre": False,
     "obs.prev_action": False,
     "obs.commands": False,
+    "obs.time_left": False,
     "obs.stiffness": False,
     "obs.torques": False,
     "geometry": "",
