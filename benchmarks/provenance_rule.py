@@ -4,7 +4,8 @@ A result file is a ``.json`` or ``.csv`` under ``benchmarks/results/`` or a poli
 ``peghole_mjx/policies/NAME/evaluation.json``. Its record must hold the six
 :data:`REQUIRED` fields, each present and not empty (decision 2026-12-04, issue 52):
 
-* a JSON result file holds them as top-level keys;
+* a JSON result file holds them as top-level keys; a JSON list of results (``peghole evaluate
+  A B --out F``: one result per policy) holds them in each entry;
 * a CSV result file has them in the JSON record of the same run beside it, the file of the same
   stem (``throughput_engines_cpu-2core.csv`` -> ``throughput_engines_cpu-2core.json``);
 * a field that cannot be recovered is the string ``"unknown: REASON"`` (the reason not empty);
@@ -96,6 +97,13 @@ def problems(path: Path) -> list[str]:
         record = json.loads(rec_path.read_text())
     except json.JSONDecodeError as exc:
         return [f"{rec_path.name}: not JSON ({exc})"]
+    if isinstance(record, list) and record and all(isinstance(r, dict) for r in record):
+        return [
+            f"{rec_path.name}[{i}]: {p}"
+            for i, r in enumerate(record)
+            for k in REQUIRED
+            if (p := field_problem(r, k))
+        ]
     if not isinstance(record, dict):
-        return [f"{rec_path.name}: not a JSON object"]
+        return [f"{rec_path.name}: not a JSON object or a list of them"]
     return [f"{rec_path.name}: {p}" for k in REQUIRED if (p := field_problem(record, k))]

@@ -626,6 +626,7 @@ def test_evaluate_prints_the_result_before_a_failed_write(
     written = strict_json(old)  # the result, with where, when and how it was made
     assert written["command"] == f"peghole evaluate rect --json --out {out}"
     assert {"device", "versions", "date", "commit"} <= written.keys()
+    assert written["config"]["episodes"] == 256 and written["config"]["env_overrides"] == {}
     with monkeypatch.context() as m:
         # the disk fills during the evaluation: the check before it (a real write probe, which
         # a disk already full refuses: test_faults_policies.py) still passed
@@ -668,7 +669,7 @@ def test_evaluate_several_checkpoints_share_one_baseline_and_policy_only(
     assert rc == 0
     res = strict_json(stdout)
     assert [r["policy_path"] for r in res] == ["rect", "dual"] == [c[0] for c in calls]
-    stamps = ("device", "versions", "date", "command", "commit")
+    stamps = ("device", "versions", "date", "command", "config", "commit")
     written = strict_json(out.read_text())
     assert [{k: v for k, v in r.items() if k not in stamps} for r in written] == res
     assert all(r["command"].startswith("peghole evaluate rect dual --seed 3") for r in written)

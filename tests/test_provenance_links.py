@@ -53,6 +53,18 @@ def test_a_csv_is_checked_through_its_same_stem_record(tmp_path):
     assert problems(csv) == ["rows.json: no 'commit'"]
 
 
+def test_a_list_of_results_is_checked_entry_by_entry(tmp_path):
+    path = tmp_path / "two.json"
+    full = {k: "x" for k in REQUIRED}
+    path.write_text(json.dumps([full, full]))
+    assert problems(path) == []
+    path.write_text(json.dumps([full, {k: "x" for k in REQUIRED[:-1]}]))
+    assert problems(path) == ["two.json[1]: no 'commit'"]
+    for bad in ([], [1, 2], "text"):
+        path.write_text(json.dumps(bad))
+        assert problems(path) == ["two.json: not a JSON object or a list of them"]
+
+
 def test_backfill_appends_keys_without_touching_what_is_there():
     text = '{\n  "x": 1.0000000000000002,\n  "y": [1e-05, NaN]\n}\n'
     out = append_keys(text, {"commit": "unknown: not recorded"})

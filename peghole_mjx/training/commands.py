@@ -249,8 +249,16 @@ def cmd_evaluate(args: argparse.Namespace) -> int:
     res = results[0] if len(results) == 1 else results
     if args.json:
         print(dumps(res), flush=True)
-    if args.out:  # each result carries its device, versions, date, command and commit
+    if args.out:  # each result carries its device, versions, date, command, config and commit
         stamp = run_provenance(["peghole", *getattr(args, "argv", ["evaluate"])])
+        stamp["config"] = {
+            "episodes": args.episodes,
+            "seed": args.seed,
+            "batch": args.batch,
+            "policy_only": bool(args.policy_only),
+            "cross": bool(args.cross),
+            "env_overrides": over or {},
+        }
         record = [r | stamp for r in results] if len(results) > 1 else results[0] | stamp
         fileio.write_text(args.out, dumps(record, indent=2) + "\n")
     return 0
