@@ -264,5 +264,5 @@ def _stamp(path: Path) -> tuple | None:
 def command_parameters(args, drop: tuple[str, ...] = ()) -> dict:
     """A command's parsed arguments as the parameters of what it writes: all but the output
     itself, ``--force``, the presentation flags and the dispatcher's own entries."""
-    skip = {"out", "force", "json", "func", *drop}
+    skip = {"out", "force", "json", "func", "argv", *drop}
     return {k: v for k, v in sorted(vars(args).items()) if k not in skip and not callable(v)}
