@@ -410,7 +410,7 @@ UTD1_FILE = EVALS_RESULTS / "learning_utd1_cpu-2core" / "learning.json"
 #: one-update-per-env-step learner with critics whose target has no entropy bonus and learning
 #: rates falling to zero, on fresh seeds
 TASKQ_FILE = EVALS_RESULTS / "learning_taskq_cpu-2core" / "learning.json"
-#: the more-worlds protocol's result file (docs/research/learner_settings.md): the task-reward
+#: the more-worlds protocol's result file (docs/research/time_limit.md): the task-reward
 #: critics' learner with eight times the worlds and env steps at the same gradient updates
 WORLDS_FILE = EVALS_RESULTS / "learning_worlds_cpu-2core" / "learning.json"
 
