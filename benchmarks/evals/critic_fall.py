@@ -1,4 +1,4 @@
-"""The mid-run fall of a learner, beside its critic's loss (docs/research/learner_settings.md).
+"""The mid-run fall of a learner, beside its critic's loss (docs/research/critic_fall.md).
 
 Under one update per env step our SAC runs on the Hard tasks reach 1.00 evaluation success
 within a few thousand env steps and then fall; this module reads each run's ``metrics.csv``
@@ -20,10 +20,11 @@ from peghole_mjx.training.logs import read_metrics
 _BENCH = EVALS_RESULTS / "learning_residual_cpu-2core"
 #: the run folders read, as (label, folder holding seed_* runs): the tuning probes
 #: (RectExtractHard) and the Hard tasks of the one-update-per-env-step, task-reward-critics and
-#: more-worlds benchmarks
+#: more-worlds and time-limit benchmarks
 _UTD1 = EVALS_RESULTS / "learning_utd1_cpu-2core" / "runs"
 _TASKQ = EVALS_RESULTS / "learning_taskq_cpu-2core" / "runs"
 _WORLDS = EVALS_RESULTS / "learning_worlds_cpu-2core" / "runs"
+_TIMELIMIT = EVALS_RESULTS / "learning_timelimit_cpu-2core" / "runs"
 RUN_GROUPS = (
     (
         "probe, mlp critic: RectExtractHard",
@@ -44,6 +45,12 @@ RUN_GROUPS = (
     ),
     ("more-worlds protocol: RectExtractHard", _WORLDS / "RectExtractHard"),
     ("more-worlds protocol: DualExtractHard", _WORLDS / "DualExtractHard"),
+    (
+        "probe, time-out a failure: RectExtractHard",
+        _WORLDS.parent / "probe_time_limit" / "runs" / "RectExtractHard",
+    ),
+    ("time-limit protocol: RectExtractHard", _TIMELIMIT / "RectExtractHard"),
+    ("time-limit protocol: DualExtractHard", _TIMELIMIT / "DualExtractHard"),
 )
 
 

@@ -413,6 +413,9 @@ TASKQ_FILE = EVALS_RESULTS / "learning_taskq_cpu-2core" / "learning.json"
 #: the more-worlds protocol's result file (docs/research/time_limit.md): the task-reward
 #: critics' learner with eight times the worlds and env steps at the same gradient updates
 WORLDS_FILE = EVALS_RESULTS / "learning_worlds_cpu-2core" / "learning.json"
+#: the time-limit protocol's result file (docs/research/time_limit.md): the more-worlds learner
+#: with a time-out as a terminal failure and the time left observed
+TIMELIMIT_FILE = EVALS_RESULTS / "learning_timelimit_cpu-2core" / "learning.json"
 
 #: the residual protocol's result file of each stack (one ``--out``: the stacks sit together)
 STACK_FILES = {
@@ -508,6 +511,13 @@ def taskq_table() -> str:
 def worlds_table() -> str:
     """The more-worlds benchmark per task, from its result file."""
     return benchmark_table((WORLDS_FILE,))
+
+
+@table("learning_timelimit")
+def timelimit_table() -> str:
+    """The time-limit benchmark per task, from its result file (or its ``--finished-only``
+    report while runs are pending)."""
+    return benchmark_table((TIMELIMIT_FILE,))
 
 
 def report_file(path: Path) -> Path | None:
