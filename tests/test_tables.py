@@ -264,6 +264,12 @@ def test_the_readme_learning_rows_come_from_the_stacks_files_and_name_what_diffe
     assert "learning_partial.json" in hard_row
     partial.write_text(json.dumps({"tasks": [ours, hard], "pending": pending}))
     assert "| pending |" in brief._time_rows()[1]
+    # a time-out made a terminal failure is a setting that differs between the stacks: named
+    hard["config"]["env_overrides"]["reward_config.time_limit"] = "failure"
+    partial.write_text(json.dumps({"tasks": [ours, hard], "pending": []}))
+    hard_row = brief._time_rows()[1]
+    assert "ours: mujoco, outcome, residual, time-out a failure, 32k steps" in hard_row
+    assert "SB3 SAC: mujoco, outcome, residual, 32k steps" in hard_row
 
 
 def test_the_readme_reads_ours_from_the_protocol_the_published_policies_name(tmp_path, monkeypatch):

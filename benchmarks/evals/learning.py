@@ -438,9 +438,12 @@ def censored_median_iqr(per_seed: list[dict], key: str) -> tuple[float, float, f
 
 def stack_setting(t: dict) -> str:
     """What a stack's task entry trained on: engine, reward kind, ``residual`` or ``plain``
-    actions."""
-    actions = "residual" if t["config"].get("env_overrides", {}).get("action.residual") else "plain"
-    return f"{t['engine']}, {t['reward_kind']}, {actions}"
+    actions, and ``time-out a failure`` where the entry set ``reward_config.time_limit``
+    so (the outcome reward's default is a truncation)."""
+    over = t["config"].get("env_overrides", {})
+    actions = "residual" if over.get("action.residual") else "plain"
+    timeout = ", time-out a failure" if over.get("reward_config.time_limit") == "failure" else ""
+    return f"{t['engine']}, {t['reward_kind']}, {actions}{timeout}"
 
 
 def censored_text(v: float, fmt: str, censored: str) -> str:
