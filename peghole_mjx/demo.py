@@ -178,8 +178,9 @@ def _evaluate(policy: str, episodes: int) -> dict:
 
 def _train_config(profile: str, engine: dict):
     """The demo's training config: RectExtract with training's defaults (RL + compliance
-    strategy, the outcome reward, residual actions; the profile's critic burn-in), the
-    learner of the residual protocol and the published policies (decided 2026-12-06)."""
+    strategy, the outcome reward, residual actions) and the profile's learner: on ``cpu`` the
+    time-limit protocol's (a time-out a terminal failure, the time left observed; decided
+    2026-12-06 by that protocol's rule, docs/research/time_limit.md)."""
     return load_train_config("RectExtract", profile, engine)
 
 
@@ -190,7 +191,8 @@ def training_task(cfg) -> str:
     kind = over.get("reward_config.kind", "thesis")  # older records: eq (4.4)
     task = "RL + compliance strategy" if cs else "RL, compliance strategy off"
     actions = "residual actions" if over.get("action.residual", False) else "plain actions"
-    return f"{task}, {kind} reward, {actions}"
+    timeout = ", time-out a failure" if over.get("reward_config.time_limit") == "failure" else ""
+    return f"{task}, {kind} reward, {actions}{timeout}"
 
 
 def output_bytes(cfg) -> int:

@@ -246,7 +246,7 @@ def test_the_readme_learning_rows_come_from_the_stacks_files_and_name_what_diffe
     ours_file.unlink()
     pending = [{"task": "RectExtractHard", "seed": 404}]
     hard = _stack_entry("RectExtractHard", "mujoco", "outcome", True, 32_000, 1.0, [None] * 5)
-    hard["config"] |= {"lr_schedule": "linear"}
+    hard["config"] |= {"lr_schedule": "constant"}
     partial.write_text(json.dumps({"tasks": [ours, hard | {"seeds": [400]}], "pending": pending}))
     assert "| pending |" in brief._time_rows()[1]  # no other stack: nothing compared
     files["sb3"].write_text(json.dumps({"tasks": [hard]}))
@@ -260,7 +260,7 @@ def test_the_readme_learning_rows_come_from_the_stacks_files_and_name_what_diffe
     # our learner's settings that differ from the task's cpu profile are named (here the
     # record's lr_schedule against the profile's default)
     assert "; ours vs RectExtractHard's cpu profile: " in hard_row
-    assert "lr_schedule linear vs constant" in hard_row
+    assert "lr_schedule constant vs linear" in hard_row
     assert "learning_partial.json" in hard_row
     partial.write_text(json.dumps({"tasks": [ours, hard], "pending": pending}))
     assert "| pending |" in brief._time_rows()[1]

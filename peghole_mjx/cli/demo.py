@@ -23,10 +23,11 @@ Steps (each also a command of its own):
    (K_theta 30 N m/rad); the report puts the simulated reductions beside the oracle's for the
    same worlds and the thesis's, and names each cell's regime;
 3. ``peghole train --env RectExtract --profile cpu`` on the ``mujoco`` engine (MuJoCo C) with
-   training's defaults (RL + compliance strategy, the outcome reward, residual actions, the
-   profile's critic burn-in: the learner of the residual protocol and of the published
-   policies, decided 2026-12-06), the profile's whole 100k env steps, then the FINAL policy
-   evaluated; ``--profile full`` on a GPU trains the same task at the GPU sizes;
+   training's defaults (RL + compliance strategy, the outcome reward, residual actions) and the
+   profile's learner, the time-limit protocol's (256 worlds, a time-out a terminal failure, the
+   time left observed; decided 2026-12-06 by that protocol's rule), the profile's whole 256k
+   env steps, then the FINAL policy evaluated; ``--profile full`` on a GPU trains the same task
+   at the GPU sizes;
 4. ``peghole evaluate rect`` (the committed pretrained policy vs the scripted baseline);
 5. ``report.md`` linking the figures.
 
