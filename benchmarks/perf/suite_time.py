@@ -282,6 +282,40 @@ RECORDED: list[dict] = [
         "commit": "f88e7c4f953f3478fa89531cd159eb18005940a7",
         "outcome": "peak memory 1.5 GB; final policy 32 of 32 demo episodes, mean F_z 3.66 N "
         "against the baseline's 8.18 N",
+        "source": "benchmarks/results/evals/demo_cpu-2core/ until 2026-12-06T20:41Z (its git "
+        "history: README.md, run.json, summary.json)",
+    },
+    {
+        "kind": "demo",
+        "label": "free 2-core CPU (156 % CPU to the demo)",
+        "wall_s": 440,
+        "device": "cpu (2 cores, x86_64)",
+        "versions": {
+            "python": "3.11.7",
+            "peghole_mjx": "0.1.0",
+            "mujoco": "4.0.1",
+            "mujoco-mjx": "3.17.0",
+            "jax": "0.10.2",
+            "jaxlib": "0.10.2",
+            "brax": "0.14.2",
+            "numpy": "2.4.6",
+            "coacd": "1.0.14",
+            "trimesh": "5.2.0",
+        },
+        "date": "2026-12-06T20:41Z",
+        "command": "/usr/bin/time -v peghole demo --out /tmp/demo_run",
+        "config": {
+            "profile": "auto -> cpu",
+            "engine": "mujoco",
+            "stop": "none: the profile's whole 256k env steps, the final policy evaluated",
+            "reward": "outcome, residual actions, RL + compliance strategy, a time-out a "
+            "terminal failure with the time left observed, 256 worlds (the cpu profile from "
+            "2026-12-06, the time-limit protocol's learner)",
+            "compliance_cells": ["default", "r1_regime"],
+        },
+        "commit": "94ce5c3a498fc5cdb6bc3b993224005fdadc7dd6",
+        "outcome": "peak memory 1.8 GB; final policy 32 of 32 demo episodes, mean F_z 0.60 N "
+        "against the baseline's 8.18 N",
         "source": "benchmarks/results/evals/demo_cpu-2core/README.md (its run.json, "
         "summary.json: device, versions, date)",
     },
