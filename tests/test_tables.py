@@ -11,6 +11,7 @@ import pytest
 
 from benchmarks import common, tables
 from benchmarks.evals import brief, learning
+from peghole_mjx.training.config import load_train_config
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -270,6 +271,12 @@ def test_the_readme_learning_rows_come_from_the_stacks_files_and_name_what_diffe
     hard_row = brief._time_rows()[1]
     assert "ours: mujoco, outcome, residual, time-out a failure, 32k steps" in hard_row
     assert "SB3 SAC: mujoco, outcome, residual, 32k steps" in hard_row
+    # our learner exactly the task's cpu profile: said so, no empty comparison
+    hard["config"] = load_train_config("RectExtractHard", "cpu").as_dict()
+    partial.write_text(json.dumps({"tasks": [ours, hard], "pending": []}))
+    hard_row = brief._time_rows()[1]
+    assert "; ours: RectExtractHard's cpu profile" in hard_row
+    assert "cpu profile: " not in hard_row
 
 
 def test_the_readme_reads_ours_from_the_protocol_the_published_policies_name(tmp_path, monkeypatch):

@@ -501,11 +501,13 @@ def profile_diff(t: dict) -> str:
     """``; ours vs TASK's cpu profile: KEY a vs b; ...``: the learner settings in which our
     entry of a row differs from its task's ``cpu`` profile (keys the record lacks read as
     :class:`TrainConfig`'s defaults), so a reader sees that the row's learner is not the
-    default one."""
+    default one; ``; ours: TASK's cpu profile`` when none differs."""
     defaults = {f.name: default(f.name) for f in fields(TrainConfig) if f.default is not MISSING}
     recorded = {**defaults, **t["config"]}  # in TrainConfig's field order: a stable row
     profile = load_train_config(t["task"], "cpu").as_dict()
     diffs = settings_diff(recorded, profile, PROFILE_DIFF_IGNORE)
+    if not diffs:
+        return f"; ours: {t['task']}'s cpu profile"
     return f"; ours vs {t['task']}'s cpu profile: {fmt_settings_diff(diffs)}"
 
 
