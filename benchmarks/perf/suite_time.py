@@ -55,6 +55,19 @@ _VERSIONS_WARP = {
     "brax": "0.14.2",
     "warp-lang": "1.18.0",
 }
+#: the stack of the 2026-12-06 demo runs (their run.json)
+_VERSIONS_DEMO = {
+    "python": "3.11.7",
+    "peghole_mjx": "0.1.0",
+    "mujoco": "4.0.1",
+    "mujoco-mjx": "3.17.0",
+    "jax": "0.10.2",
+    "jaxlib": "0.10.2",
+    "brax": "0.14.2",
+    "numpy": "2.4.6",
+    "coacd": "1.0.14",
+    "trimesh": "5.2.0",
+}
 _CI_UNKNOWN = {
     "device": "unknown: CI's machine is not recorded by the landing report",
     "versions": "unknown: CI installs what pyproject.toml allows; its versions are not recorded",
@@ -257,18 +270,7 @@ RECORDED: list[dict] = [
         "label": "free 2-core CPU (158 % CPU to the demo)",
         "wall_s": 410,
         "device": "cpu (2 cores, x86_64)",
-        "versions": {
-            "python": "3.11.7",
-            "peghole_mjx": "0.1.0",
-            "mujoco": "4.0.1",
-            "mujoco-mjx": "3.17.0",
-            "jax": "0.10.2",
-            "jaxlib": "0.10.2",
-            "brax": "0.14.2",
-            "numpy": "2.4.6",
-            "coacd": "1.0.14",
-            "trimesh": "5.2.0",
-        },
+        "versions": _VERSIONS_DEMO,
         "date": "2026-12-06T06:07Z",
         "command": "/usr/bin/time -v peghole demo --out /tmp/demo_run",
         "config": {
@@ -290,18 +292,7 @@ RECORDED: list[dict] = [
         "label": "free 2-core CPU (156 % CPU to the demo)",
         "wall_s": 440,
         "device": "cpu (2 cores, x86_64)",
-        "versions": {
-            "python": "3.11.7",
-            "peghole_mjx": "0.1.0",
-            "mujoco": "4.0.1",
-            "mujoco-mjx": "3.17.0",
-            "jax": "0.10.2",
-            "jaxlib": "0.10.2",
-            "brax": "0.14.2",
-            "numpy": "2.4.6",
-            "coacd": "1.0.14",
-            "trimesh": "5.2.0",
-        },
+        "versions": _VERSIONS_DEMO,
         "date": "2026-12-06T20:41Z",
         "command": "/usr/bin/time -v peghole demo --out /tmp/demo_run",
         "config": {
