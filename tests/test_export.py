@@ -98,9 +98,11 @@ def test_export_writes_a_checked_onnx_model_and_its_action_decoding(exports):
     spec = json.loads((folder / "action.json").read_text())
     assert spec["format_version"] == 1 and spec["peghole_mjx_version"]
     obs = spec["observation"]
-    assert obs["size"] == 9 == len(obs["entries"])
+    # eq 4.2's nine numbers and the time left (the policy observes it: obs.time_left)
+    assert obs["size"] == 10 == len(obs["entries"])
     assert [e["name"] for e in obs["entries"]][:3] == ["flange_x", "flange_y", "flange_height"]
     assert {e["unit"] for e in obs["entries"][6:9]} == {"deg"}
+    assert obs["entries"][9]["name"] == "time_left"
     # the decoding's numbers are the training env's config (policy.json's overrides applied)
     meta = load_policy("rect").meta
     cfg = get_default_config("RectExtract")
@@ -148,21 +150,12 @@ def test_onnx_actions_equal_jax_on_10000_observations(exports, mujoco_env, name)
 @pytest.mark.slow
 def test_the_time_left_entry_is_exported_and_deployed_as_the_env_computes_it(tmp_path):
     """A policy whose env observes the time left (``obs.time_left``, with the time-out a
-    failure): the export names the entry (offset the episode length, scale its inverse
-    negated) and the deployed observation, counted from its own steps, equals the env's."""
-    from peghole_mjx.policies import init_params, save_policy
-
-    bundle = load_policy("rect")
-    meta = json.loads(json.dumps(bundle.meta))
-    meta["env_overrides"] |= {
-        "obs.time_left": True,
-        "reward_config.kind": "outcome",
-        "reward_config.time_limit": "failure",
-    }
-    meta["network"]["observation_size"] += 1
-    meta["network"]["normalize_observations"] = False
-    save_policy(tmp_path / "pol", init_params(meta["network"], seed=1), meta)
-    folder = Path(export_policy(tmp_path / "pol", tmp_path / "export")["out"])
+    failure; the published ``rect`` since 2026-12-06): the export names the entry (offset the
+    episode length, scale its inverse negated) and the deployed observation, counted from its
+    own steps, equals the env's."""
+    over = load_policy("rect").meta["env_overrides"]
+    assert over["obs.time_left"] is True and over["reward_config.time_limit"] == "failure"
+    folder = Path(export_policy(PRETRAINED["rect"], tmp_path / "export")["out"])
     entry = read_spec(folder)["observation"]["entries"][-1]
     n = get_default_config("RectExtract").episode_length
     assert entry["name"] == "time_left" and entry["source"] == "step"
@@ -291,11 +284,11 @@ def test_a_nan_reading_is_refused_and_changes_nothing(exports):
 
 def test_a_wrong_observation_size_is_refused_in_one_line(exports):
     p = DeployedPolicy(exports("rect"))
-    with pytest.raises(UserInputError, match=r"shape \(15,\): this policy takes 9 numbers") as e:
+    with pytest.raises(UserInputError, match=r"shape \(15,\): this policy takes 10 numbers") as e:
         p.act_obs(np.zeros(15, np.float32))
     assert "\n" not in str(e.value)
     with pytest.raises(SensorError, match="NaN"):
-        p.act_obs(np.full(9, np.nan, np.float32))
+        p.act_obs(np.full(10, np.nan, np.float32))
     with pytest.raises(SensorError, match="wrench_N_Nm must be 6 numbers"):
         p.reset(commanded_tip_m=(0, 0, 0))
         p.act(wrench_N_Nm=[1.0, 2.0, 3.0], flange_pos_m=[0, 0, 0], flange_tilt_rad=[0, 0, 0])
@@ -381,4 +374,4 @@ def test_export_force_replaces_an_earlier_export(exports, tmp_path, capsys):
     assert rc == 0, err
     assert "ONNX Runtime vs JAX actions differ by at most" in stdout
     assert json.loads((out / "action.json").read_text())["policy"]["env"] == "DualExtract"
-    assert DeployedPolicy(out).observation_size == 15
+    assert DeployedPolicy(out).observation_size == 16  # eq 4.2, obs.commands, time left

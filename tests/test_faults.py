@@ -902,8 +902,9 @@ def test_policy_is_checked_against_the_env_it_runs_in(policy_copy):
     with pytest.raises(UserInputError, match="not for DualExtract"):
         bundle.check_env(load("DualExtract"))
     env = bundle.make_env()  # the policy's own env fits
-    bundle.meta["network"]["observation_size"] = 10
-    with pytest.raises(UserInputError, match="observations of size 10"):
+    wrong = bundle.meta["network"]["observation_size"] + 1
+    bundle.meta["network"]["observation_size"] = wrong
+    with pytest.raises(UserInputError, match=f"observations of size {wrong}"):
         bundle.check_env(env)
 
 

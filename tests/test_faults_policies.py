@@ -65,12 +65,12 @@ def _edit_arrays(path, edit):
 def test_params_of_another_policy_name_the_array_its_shape_and_the_expected_one(
     rect_copy, capsys, no_simulation
 ):
-    shutil.copy(PRETRAINED["dual"] / "params.npz", rect_copy / "params.npz")  # 15 observations
-    with pytest.raises(CorruptFileError, match=r"array 0/mean has shape \(15,\).*expects \(9,\)"):
+    shutil.copy(PRETRAINED["dual"] / "params.npz", rect_copy / "params.npz")  # 16 observations
+    with pytest.raises(CorruptFileError, match=r"array 0/mean has shape \(16,\).*expects \(10,\)"):
         load_policy(rect_copy)
     rc, out, err = peghole(["evaluate", rect_copy, "--json"], capsys)
     assert rc == 2 and out == ""
-    assert_one_line(err, "params.npz", "array 0/mean has shape (15,)", "expects (9,)")
+    assert_one_line(err, "params.npz", "array 0/mean has shape (16,)", "expects (10,)")
 
 
 def test_one_transposed_weight_is_named_with_both_shapes(rect_copy, capsys, no_simulation):
@@ -78,7 +78,7 @@ def test_one_transposed_weight_is_named_with_both_shapes(rect_copy, capsys, no_s
     _edit_arrays(rect_copy, lambda a: a.update({key: a[key].T.copy()}))
     rc, _, err = peghole(["evaluate", rect_copy], capsys)
     assert rc == 2
-    assert_one_line(err, f"array {key} has shape (256, 9)", "expects (9, 256)")
+    assert_one_line(err, f"array {key} has shape (256, 10)", "expects (10, 256)")
 
 
 # ---------------------------------------------------------------------- 2. schema on load

@@ -206,16 +206,18 @@ def _edit_spec(folder: Path, edit) -> None:
 
 
 def _write_model(folder: Path, inputs: int, out_size: int) -> None:
-    """A valid ONNX model of ``inputs`` inputs (batch, 9) and one output (batch, out_size),
-    its SHA-256 recorded in action.json (so only its signature is wrong)."""
+    """A valid ONNX model of ``inputs`` inputs (batch, the export's observation size) and one
+    output (batch, out_size), its SHA-256 recorded in action.json (so only its signature is
+    wrong)."""
     pytest.importorskip("onnx")
     from onnx import TensorProto, helper, numpy_helper
 
+    n = json.loads((folder / "action.json").read_text())["observation"]["size"]
     ins = [
-        helper.make_tensor_value_info(f"obs{i}", TensorProto.FLOAT, ["batch", 9])
+        helper.make_tensor_value_info(f"obs{i}", TensorProto.FLOAT, ["batch", n])
         for i in range(inputs)
     ]
-    w = numpy_helper.from_array(np.zeros((9, out_size), np.float32), "w")
+    w = numpy_helper.from_array(np.zeros((n, out_size), np.float32), "w")
     out = helper.make_tensor_value_info("action", TensorProto.FLOAT, ["batch", out_size])
     graph = helper.make_graph(
         [helper.make_node("MatMul", ["obs0", "w"], ["action"])], "g", ins, [out], [w]
