@@ -172,7 +172,12 @@ def test_coacd_refuses_a_mesh_of_too_many_faces(monkeypatch):
 
 
 HANG = """
+import signal
 import sys
+
+# a foreground command's SIGINT (a shell's background job inherits it ignored, and Python then
+# installs no KeyboardInterrupt handler)
+signal.signal(signal.SIGINT, signal.default_int_handler)
 
 from peghole_mjx.cli import main as cli
 from peghole_mjx.geometry import decompose
