@@ -284,11 +284,13 @@ def test_a_nan_reading_is_refused_and_changes_nothing(exports):
 
 def test_a_wrong_observation_size_is_refused_in_one_line(exports):
     p = DeployedPolicy(exports("rect"))
-    with pytest.raises(UserInputError, match=r"shape \(15,\): this policy takes 10 numbers") as e:
+    n = load_policy("rect").meta["network"]["observation_size"]
+    assert p.observation_size == n != 15
+    with pytest.raises(UserInputError, match=rf"shape \(15,\): this policy takes {n} numbers") as e:
         p.act_obs(np.zeros(15, np.float32))
     assert "\n" not in str(e.value)
     with pytest.raises(SensorError, match="NaN"):
-        p.act_obs(np.full(10, np.nan, np.float32))
+        p.act_obs(np.full(n, np.nan, np.float32))
     with pytest.raises(SensorError, match="wrench_N_Nm must be 6 numbers"):
         p.reset(commanded_tip_m=(0, 0, 0))
         p.act(wrench_N_Nm=[1.0, 2.0, 3.0], flange_pos_m=[0, 0, 0], flange_tilt_rad=[0, 0, 0])
@@ -374,4 +376,5 @@ def test_export_force_replaces_an_earlier_export(exports, tmp_path, capsys):
     assert rc == 0, err
     assert "ONNX Runtime vs JAX actions differ by at most" in stdout
     assert json.loads((out / "action.json").read_text())["policy"]["env"] == "DualExtract"
-    assert DeployedPolicy(out).observation_size == 16  # eq 4.2, obs.commands, time left
+    dual = load_policy("dual").meta["network"]["observation_size"]
+    assert DeployedPolicy(out).observation_size == dual

@@ -61,16 +61,27 @@ def _edit_arrays(path, edit):
     np.savez(path / "params.npz", **arrays)
 
 
+def _observation_size(name: str) -> int:
+    """A published policy's observation size, as its policy.json states it."""
+    meta = json.loads((PRETRAINED[name] / "policy.json").read_text())
+    return meta["network"]["observation_size"]
+
+
 # ---------------------------------------------------------------------- 1. shapes
 def test_params_of_another_policy_name_the_array_its_shape_and_the_expected_one(
     rect_copy, capsys, no_simulation
 ):
-    shutil.copy(PRETRAINED["dual"] / "params.npz", rect_copy / "params.npz")  # 16 observations
-    with pytest.raises(CorruptFileError, match=r"array 0/mean has shape \(16,\).*expects \(10,\)"):
+    n_dual, n_rect = _observation_size("dual"), _observation_size("rect")
+    assert n_dual != n_rect
+    shutil.copy(PRETRAINED["dual"] / "params.npz", rect_copy / "params.npz")
+    match = rf"array 0/mean has shape \({n_dual},\).*expects \({n_rect},\)"
+    with pytest.raises(CorruptFileError, match=match):
         load_policy(rect_copy)
     rc, out, err = peghole(["evaluate", rect_copy, "--json"], capsys)
     assert rc == 2 and out == ""
-    assert_one_line(err, "params.npz", "array 0/mean has shape (16,)", "expects (10,)")
+    assert_one_line(
+        err, "params.npz", f"array 0/mean has shape ({n_dual},)", f"expects ({n_rect},)"
+    )
 
 
 def test_one_transposed_weight_is_named_with_both_shapes(rect_copy, capsys, no_simulation):
@@ -78,7 +89,8 @@ def test_one_transposed_weight_is_named_with_both_shapes(rect_copy, capsys, no_s
     _edit_arrays(rect_copy, lambda a: a.update({key: a[key].T.copy()}))
     rc, _, err = peghole(["evaluate", rect_copy], capsys)
     assert rc == 2
-    assert_one_line(err, f"array {key} has shape (256, 10)", "expects (10, 256)")
+    n = _observation_size("rect")
+    assert_one_line(err, f"array {key} has shape (256, {n})", f"expects ({n}, 256)")
 
 
 # ---------------------------------------------------------------------- 2. schema on load
